@@ -1,0 +1,137 @@
+"""marinebench command line: thin layer over config loading, the runner and the writers.
+
+Exit codes: 0 success, 1 failure of a check (reserved for ``compare``), 2 unusable input (config
+errors, infeasible designs, a step too large for the observer gains).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+from marinebench.errors import ConfigError, MarinebenchError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation benchmarks for marine-vehicle observers.")
+err = Console(stderr=True, highlight=False, soft_wrap=True)
+out = Console(highlight=False, soft_wrap=True)
+
+
+def fail(message: str, code: int = 2) -> None:
+    err.print(f"error: {message}", markup=False)
+    raise typer.Exit(code)
+
+
+def _load(config: Path, sets: list[str], seed: Optional[int], seeds: Optional[int]):
+    from marinebench.config import load_experiment
+
+    sets = list(sets)
+    if seed is not None:
+        sets.append(f"seed={seed}")
+    if seeds is not None:
+        sets.append(f"seeds={seeds}")
+    return load_experiment(config, sets)
+
+
+@app.command()
+def run(
+    configs: Annotated[list[Path], typer.Argument(help="experiment YAML files")],
+    out_dir: Annotated[Optional[Path], typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
+    seed: Annotated[Optional[int], typer.Option(help="root seed (overrides the config)")] = None,
+    seeds: Annotated[Optional[int], typer.Option(help="Monte-Carlo runs per variant")] = None,
+    set_: Annotated[list[str], typer.Option("--set", help="override a config field: dotted.key=value")] = [],
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md, figures/."""
+    from marinebench.experiments.runner import run as run_experiment
+    from marinebench.results.outputs import write_run
+
+    try:
+        loaded = [(c, *_load(c, set_, seed, seeds)) for c in configs]  # validate everything first
+    except MarinebenchError as exc:
+        fail(str(exc))
+    base = out_dir if out_dir is not None else Path("results")
+    for path, exp, origins in loaded:
+        target = base / path.stem
+        try:
+            with Progress(
+                TextColumn(f"{exp.name:<22}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+                TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
+            ) as bar:
+                task = bar.add_task(exp.name, total=1)
+                result = run_experiment(
+                    exp,
+                    progress=lambda n: bar.advance(task, n),
+                    on_start=lambda n: bar.update(task, total=n),
+                )
+                bar.update(task, completed=bar.tasks[0].total)
+        except ConfigError as exc:
+            fail(str(exc))
+        except MarinebenchError as exc:
+            key = "scenario.dt" if exc.__class__.__name__ == "StiffnessError" else "variants"
+            fail(f"{path}: {key}: {exc}")
+        write_run(result, target, origins)
+        n_div = int((result.metrics["status"] != "ok").sum())
+        if n_div:
+            err.print(f"warning: {exp.name}: {n_div} metric values from diverged runs excluded", markup=False)
+        if not quiet:
+            out.print(f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s -> {target}", markup=False)
+
+
+@app.command()
+def validate(files: Annotated[list[Path], typer.Argument(help="experiment or scenario YAML files")]) -> None:
+    """Check configs (and solve their observer designs) without running them."""
+    from marinebench.config import is_scenario_file, load_scenario
+    from marinebench.observers import bejarano
+
+    for f in files:
+        try:
+            if is_scenario_file(f):
+                load_scenario(f)
+            else:
+                exp, _ = _load(f, [], None, None)
+                for i, v in enumerate(exp.variants):
+                    if v.observer.kind == "bejarano":
+                        try:
+                            bejarano.design(v.observer)
+                        except MarinebenchError as exc:
+                            raise ConfigError(f, f"variants.{i}.observer", str(exc)) from None
+        except MarinebenchError as exc:
+            fail(str(exc))
+        out.print(f"{f}: ok", markup=False)
+
+
+@app.command()
+def schema(kind: Annotated[str, typer.Option(help="experiment or scenario")] = "experiment") -> None:
+    """Print the JSON Schema of experiment (or scenario) YAML files."""
+    from marinebench.config import Experiment
+    from marinebench.scenario import Scenario
+
+    models = {"experiment": Experiment, "scenario": Scenario}
+    if kind not in models:
+        fail(f"--kind: expected one of {sorted(models)}, got '{kind}'")
+    sys.stdout.write(json.dumps(models[kind].model_json_schema(), indent=2) + "\n")
+
+
+@app.command(name="list")
+def list_kinds() -> None:
+    """List registered kinds: vessels, observers, signals, noise models, metrics."""
+    from marinebench.registry import kinds
+
+    for group, entries in kinds().items():
+        out.print(f"[bold]{group}[/bold]")
+        for name, doc in entries.items():
+            out.print(f"  {name:<22} {doc}", markup=False)
+
+
+def main() -> None:  # pragma: no cover - console entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

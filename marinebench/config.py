@@ -1,0 +1,273 @@
+"""Experiment configuration: pydantic v2 models and YAML loading with file:key error mapping.
+
+An experiment YAML names a scenario file (``scenario: ../scenarios/x.yaml``) or embeds a scenario
+with overrides (``scenario: {from: ../scenarios/x.yaml, horizon: 10}``). ``--set dotted.key=value``
+edits the resolved document before validation; list items are addressed by index
+(``variants.0.observer.eps``) or by name (``variants[liu_eps0.1].observer.eps``).
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from marinebench.errors import ConfigError
+from marinebench.observers.bejarano import BejaranoTuning
+from marinebench.observers.liu_eso import LiuEsoTuning
+from marinebench.scenario import Scenario
+
+ObserverTuning = Annotated[Union[BejaranoTuning, LiuEsoTuning], Field(discriminator="kind")]
+NAME = r"^[A-Za-z0-9_.+-]+$"
+SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
+
+
+class Variant(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(..., pattern=NAME, description="variant name used in tables and metrics.csv")
+    label: str | None = Field(None, description="legend label (default: the name)")
+    observer: ObserverTuning
+
+
+class ErrorMetric(BaseModel):
+    """Statistics of the estimation error ``est - truth`` over ``t_start <= t <= t_end``."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["std", "rmse", "max_abs"] = "std"
+    signals: list[Literal["u", "v", "r", "sigma_u", "sigma_v", "sigma_r"]] = Field(default_factory=lambda: list(SIGNALS))
+    t_start: float = Field(
+        5.0,
+        ge=0,
+        description="start of the window [s]; excludes the peaking transient from the zero initial estimate "
+        "(eta(0) = [0, 10, 0] vs eta_hat(0) = 0), which the papers' 'steady-state' figures do not contain",
+    )
+    t_end: float | None = Field(None, gt=0, description="end of the window [s] (default: the horizon)")
+
+
+class PaperValues(BaseModel):
+    """Published numbers shown beside ours, in a column labelled as the paper's (never computed)."""
+
+    model_config = ConfigDict(extra="forbid")
+    source: str = Field(..., description="citation, e.g. 'Bejarano et al., Table IV'")
+    values: dict[str, dict[str, float]] = Field(default_factory=dict, description="variant -> signal -> value")
+
+
+class TableSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    title: str
+    metric: Literal["std", "rmse", "max_abs"] = "std"
+    signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
+    paper: PaperValues | None = None
+
+
+class FigureSpec(BaseModel):
+    """Time series of truth and estimates (or errors) for seed 0 of the chosen variants."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["timeseries"] = "timeseries"
+    file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
+    title: str = ""
+    signals: list[Literal["u", "v", "r", "sigma_u", "sigma_v", "sigma_r"]]
+    variants: list[str] | None = Field(None, description="default: all variants")
+    error: bool = Field(True, description="add a lower panel per signal with the estimation error")
+    t_range: tuple[float, float] | None = None
+
+
+class EngineOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    stiffness_limit: float = Field(
+        0.5, gt=0, le=2.78, description="refuse dt unless dt*|lambda|max <= this (RK4 stable below 2.78)"
+    )
+    trace_dt: float = Field(0.02, gt=0, description="sampling interval of the traces kept for figures [s]")
+
+
+class Experiment(BaseModel):
+    """One paper table or figure: a scenario, variants, seeds, metrics and outputs."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(..., pattern=NAME)
+    description: str = ""
+    scenario: Scenario
+    seed: int = Field(2024, ge=0, description="root seed; run seeds derive from (seed, seed index)")
+    seeds: int = Field(5, ge=1, le=10000, description="Monte-Carlo runs per variant")
+    variants: list[Variant] = Field(..., min_length=1)
+    metrics: list[ErrorMetric] = Field(default_factory=lambda: [ErrorMetric()])
+    table: TableSpec | None = None
+    figures: list[FigureSpec] = Field(default_factory=list)
+    engine: EngineOptions = Field(default_factory=EngineOptions)
+    assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
+
+    @model_validator(mode="after")
+    def _cross_references(self) -> "Experiment":
+        names = [v.name for v in self.variants]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"duplicate variant names: {sorted(dup)}")
+        kinds = [m.kind for m in self.metrics]
+        if len(set(kinds)) != len(kinds):
+            raise ValueError("each metric kind may appear once")
+        for m in self.metrics:
+            if m.t_start >= (m.t_end or self.scenario.horizon):
+                raise ValueError(f"metric window starts at {m.t_start} s, after its end")
+        if self.table is not None:
+            if self.table.metric not in kinds:
+                raise ValueError(f"table.metric '{self.table.metric}' is not among metrics {kinds}")
+            if self.table.paper is not None:
+                unknown = set(self.table.paper.values) - set(names)
+                if unknown:
+                    raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
+        for f in self.figures:
+            unknown = set(f.variants or []) - set(names)
+            if unknown:
+                raise ValueError(f"figure {f.file} names unknown variants {sorted(unknown)}")
+        return self
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(path, "", "file not found") from None
+    except OSError as exc:
+        raise ConfigError(path, "", f"cannot read ({exc.strerror})") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(path, "", f"invalid YAML: {where}{problem}") from None
+    if not isinstance(doc, dict):
+        raise ConfigError(path, "", "expected a mapping at the top level")
+    return doc
+
+
+def _deep_merge(base: dict, over: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        out[k] = _deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
+    return out
+
+
+_TOKEN = re.compile(r"([^.\[\]]+)|\[([^\]]+)\]")
+
+
+def _split_path(key: str) -> list[str | tuple[str]]:
+    parts: list[str | tuple[str]] = []
+    pos = 0
+    for m in _TOKEN.finditer(key):
+        if m.start() != pos and key[pos:m.start()] != ".":
+            raise ValueError(f"malformed key '{key}'")
+        parts.append(m.group(1) if m.group(1) is not None else (m.group(2),))
+        pos = m.end()
+    if not parts or pos != len(key):
+        raise ValueError(f"malformed key '{key}'")
+    return parts
+
+
+def apply_set(doc: dict, assignment: str) -> None:
+    """Apply one ``dotted.key=value`` override in place (value parsed as YAML)."""
+    if "=" not in assignment:
+        raise ConfigError("--set", assignment, "expected dotted.key=value")
+    key, raw = assignment.split("=", 1)
+    try:
+        value = yaml.safe_load(raw) if raw != "" else ""
+        parts = _split_path(key.strip())
+    except (yaml.YAMLError, ValueError) as exc:
+        raise ConfigError("--set", key, str(exc).splitlines()[0]) from None
+    node: Any = doc
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(part, tuple):  # [name] selector in a list of named items
+            if not isinstance(node, list):
+                raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
+            match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
+            if not match:
+                raise ConfigError("--set", key, f"no item named '{part[0]}'")
+            idx: int | str = match[0]
+        elif isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1})")
+            idx = int(part)
+        elif isinstance(node, dict):
+            idx = part
+        else:
+            raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
+        if last:
+            node[idx] = value
+        else:
+            if isinstance(node, dict) and idx not in node:
+                node[idx] = {}
+            node = node[idx]
+
+
+def resolve_document(path: Path, sets: list[str] = ()) -> tuple[dict, dict[str, Path]]:
+    """Read an experiment file, inline its scenario, apply ``--set``; returns (document, origins)."""
+    doc = _read_yaml(path)
+    origins = {"": path}
+    doc.setdefault("name", path.stem)
+    scen = doc.get("scenario")
+    if isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen):
+        ref = scen if isinstance(scen, str) else scen["from"]
+        overrides = {} if isinstance(scen, str) else {k: v for k, v in scen.items() if k != "from"}
+        if not isinstance(ref, str):
+            raise ConfigError(path, "scenario.from", "expected a file path")
+        spath = (path.parent / ref).resolve()
+        if not spath.exists():
+            raise ConfigError(path, "scenario", f"scenario file not found: {ref}")
+        doc["scenario"] = _deep_merge(_read_yaml(spath), overrides)
+        origins["scenario"] = spath
+    for s in sets:
+        apply_set(doc, s)
+    return doc, origins
+
+
+def _loc(loc: tuple) -> str:
+    # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
+    return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in {"bejarano", "liu_eso", "random_sinusoid", "constant", "none", "bandlimited_uniform"}))
+
+
+def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -> ConfigError:
+    err = exc.errors()[0]
+    key = _loc(err["loc"])
+    file = origins.get("scenario") if key.startswith("scenario") and "scenario" in origins else origins[""]
+    msg = err["msg"]
+    if err["type"] == "extra_forbidden":
+        msg = "unknown key"
+    more = len(exc.errors()) - 1
+    return ConfigError(file, key or "(top level)", msg + (f" (and {more} more)" if more else ""))
+
+
+def load_experiment(path: str | Path, sets: list[str] = ()) -> tuple[Experiment, dict]:
+    """Load and validate an experiment config; raises ConfigError naming the file and key."""
+    path = Path(path)
+    doc, origins = resolve_document(path, sets)
+    try:
+        exp = Experiment.model_validate(doc)
+    except ValidationError as exc:
+        raise validation_to_config_error(exc, origins) from None
+    return exp, origins
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    path = Path(path)
+    doc = _read_yaml(path)
+    try:
+        return Scenario.model_validate(doc)
+    except ValidationError as exc:
+        raise validation_to_config_error(exc, {"": path}) from None
+
+
+def is_scenario_file(path: Path) -> bool:
+    """A scenario document has no ``variants`` key."""
+    try:
+        return "variants" not in _read_yaml(path)
+    except ConfigError:
+        return False

@@ -1,0 +1,1 @@
+"""Offline designs: LMI problems (cvxpy + CLARABEL) re-verified in numpy."""

@@ -1,0 +1,152 @@
+"""LMI designs of the Bejarano et al. estimator (eqs. (15)-(16), (25), (26)-(28), (48)).
+
+Both problems minimise the ISS gain bound beta subject to a Lyapunov decrease LMI, an alpha-stability
+half-plane LMI ``Re(lambda) <= -delta`` (Chilali-Gahinet-Apkarian 1999) and, as a documented deviation,
+a disk region ``|lambda| <= rho``: without it the objective is flat in the gains and the solver
+returns spurious poles near -1e8 (see ``shared/reference/baselines.md`` section 2.4). For large delta the
+problem is solved in time-scaled coordinates ``t' = s t`` (``s = delta``) with the states of the
+integrator chain scaled by ``diag(1, s, s^2)``: A stays, ``r, delta, rho`` are divided by ``s`` and the gain's
+block rows are multiplied back by ``s, s^2, s^3``. This is exact for the poles and avoids a badly scaled
+SDP; the "+I" normalisation of (16c)/(28c) then holds in the scaled coordinates.
+
+Symbols -> code: P_psi -> ``P``, W_psi -> ``W``, beta_psi -> ``beta``, delta_{psi,1} -> ``delta``,
+L_{p_z} = P_p^-1 W_p -> ``L_pz``, k_{omega,p} -> ``k_omega``, k_{n,p} -> ``k_n``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cvxpy as cp
+import numpy as np
+
+from marinebench.errors import DesignError
+
+A_PSI = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+C_PSI = np.array([[1.0, 0.0, 0.0]])
+BW_PSI = np.array([[0.0], [0.0], [1.0]])
+
+I2, Z2 = np.eye(2), np.zeros((2, 2))
+A0_P = np.block([[Z2, I2, Z2], [Z2, Z2, I2], [Z2, Z2, Z2]])  # eq. (29)
+S_P = np.array([[0.0, -1.0], [1.0, 0.0]])
+S_TP = np.block([[S_P.T, Z2, Z2], [Z2, Z2, Z2], [Z2, Z2, Z2]])  # S_{T_p} of eq. (29)
+C_P = np.hstack([I2, Z2, Z2])
+BW_P = np.vstack([Z2, Z2, I2])
+
+
+@dataclass(frozen=True)
+class LmiSolution:
+    """Solution of one design problem, in original (unscaled) time."""
+
+    gain: np.ndarray  # L_psi (3, 1) with A - L C, or L_pz (6, 2) with A0 + r S + L_pz C
+    P: np.ndarray
+    W: np.ndarray
+    beta: float
+    time_scale: float
+    poles: np.ndarray  # closed-loop poles at the r vertices (and r = 0), flattened
+
+
+def _sym(X: cp.Expression) -> cp.Expression:
+    return (X + X.T) / 2
+
+
+def _solve(problem: cp.Problem, what: str) -> None:
+    """Solve with CLARABEL; 'inaccurate' solutions are accepted because ``verify`` re-checks them."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError as exc:  # pragma: no cover - solver crash
+        raise DesignError(f"{what}: solver failed ({exc})") from exc
+    if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
+        raise DesignError(f"{what}: LMI problem is {problem.status}")
+
+
+def _scale_rows(gain: np.ndarray, s: float, block: int) -> np.ndarray:
+    """Map a gain designed in time-scaled coordinates back: block row i is multiplied by s**(i+1)."""
+    out = gain.copy()
+    for i in range(gain.shape[0] // block):
+        out[i * block : (i + 1) * block] *= s ** (i + 1)
+    return out
+
+
+@lru_cache(maxsize=256)
+def rotational_design(delta: float, rho: float, scale_above: float = 50.0) -> LmiSolution:
+    """Rotational gain L_psi = -P_psi^-1 W_psi from problem (16) with (25) and a disk |lambda| <= rho."""
+    s = delta if delta >= scale_above else 1.0
+    d, r_ = delta / s, rho / s
+    P = cp.Variable((3, 3), symmetric=True)
+    W = cp.Variable((3, 1))
+    beta = cp.Variable()
+    lyap = A_PSI.T @ P + P @ A_PSI + C_PSI.T @ W.T + W @ C_PSI
+    PA = P @ A_PSI + W @ C_PSI
+    cons = [
+        P >> 1e-6 * np.eye(3),
+        _sym(lyap + np.eye(3)) << 0,  # (16c)
+        _sym(cp.bmat([[-beta * np.eye(3), P @ BW_PSI], [(P @ BW_PSI).T, -beta * np.eye(1)]])) << 0,  # (16d)
+        _sym(lyap + 2 * d * P) << 0,  # (25)
+        _sym(cp.bmat([[-r_ * P, PA], [PA.T, -r_ * P]])) << 0,  # disk region
+    ]
+    _solve(cp.Problem(cp.Minimize(beta), cons), f"rotational LMI (delta_psi1={delta}, rho={rho})")
+    L_bar = -np.linalg.solve(P.value, W.value)
+    L = _scale_rows(L_bar, s, 1)
+    poles = np.linalg.eigvals(A_PSI - L @ C_PSI)
+    return LmiSolution(L, P.value, W.value, float(beta.value), s, poles)
+
+
+@lru_cache(maxsize=256)
+def positional_design(
+    delta: float,
+    k_omega: float,
+    k_n: float,
+    r_min: float,
+    r_max: float,
+    rho: float,
+    scale_above: float = 50.0,
+) -> LmiSolution:
+    """Positional gain L_pz = P_p^-1 W_p from problem (28) with (48) and a disk |lambda| <= rho."""
+    s = delta if delta >= scale_above else 1.0
+    d, r_ = delta / s, rho / s
+    A0 = A0_P  # invariant under z -> diag(1, s, s^2) z combined with t' = s t
+    P = cp.Variable((6, 6), symmetric=True)
+    W = cp.Variable((6, 2))
+    beta = cp.Variable()
+    cons = [P >> 1e-6 * np.eye(6)]
+    for r in (r_min / s, r_max / s):
+        lyap = A0.T @ P + P @ A0 + C_P.T @ W.T + W @ C_P + r * (S_TP.T @ P + P @ S_TP)
+        cons += [_sym(lyap + np.eye(6)) << 0, _sym(lyap + 2 * d * P) << 0]  # (28c,d), (48)
+        PA = P @ (A0 + r * S_TP) + W @ C_P
+        cons += [_sym(cp.bmat([[-r_ * P, PA], [PA.T, -r_ * P]])) << 0]  # disk region
+    U = cp.bmat(
+        [
+            [-beta * np.eye(6), k_omega * (P @ BW_P), k_n * W],
+            [k_omega * (P @ BW_P).T, -beta * np.eye(2), np.zeros((2, 2))],
+            [k_n * W.T, np.zeros((2, 2)), -beta * np.eye(2)],
+        ]
+    )
+    cons += [_sym(U) << 0]  # (28e)
+    what = f"positional LMI (delta_p1={delta}, k_omega={k_omega}, k_n={k_n}, rho={rho})"
+    _solve(cp.Problem(cp.Minimize(beta), cons), what)
+    L_bar = np.linalg.solve(P.value, W.value)
+    L = _scale_rows(L_bar, s, 2)
+    poles = np.concatenate([np.linalg.eigvals(A0_P + r * S_TP + L @ C_P) for r in (r_min, 0.0, r_max)])
+    return LmiSolution(L, P.value, W.value, float(beta.value), s, poles)
+
+
+def verify(sol: LmiSolution, delta: float, rho: float, tol: float = 1e-6) -> list[str]:
+    """Independent numpy checks of a design: P > 0 and every pole inside the requested region.
+
+    Returns a list of human-readable failures (empty when the design is valid).
+    """
+    problems = []
+    if np.min(np.linalg.eigvalsh((sol.P + sol.P.T) / 2)) <= 0:
+        problems.append("P is not positive definite")
+    worst_re = float(np.max(sol.poles.real))
+    if worst_re > -delta + tol * max(1.0, delta):
+        problems.append(f"slowest pole Re={worst_re:.4g} is right of -delta={-delta:.4g}")
+    worst_abs = float(np.max(np.abs(sol.poles)))
+    if worst_abs > rho * (1 + 1e-4):
+        problems.append(f"fastest pole |lambda|={worst_abs:.4g} exceeds rho={rho:.4g}")
+    return problems

@@ -1,0 +1,1 @@
+"""Environment and open-loop excitation signals."""

@@ -1,0 +1,1 @@
+"""Assembly of runs from a config: batch -> engine -> tidy frame."""

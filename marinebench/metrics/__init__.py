@@ -1,0 +1,1 @@
+"""Statistics over Monte-Carlo runs."""

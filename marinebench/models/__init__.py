@@ -1,0 +1,1 @@
+"""Vessel models with batched dynamics ``f(x, tau)`` over runs ``(B, n)``."""

@@ -1,0 +1,113 @@
+"""CyberShip II 3-DOF nonlinear manoeuvring model (Skjetne, Smogeli & Fossen 2004).
+
+Parameters are Table II of Bejarano et al. plus the optional cubic surge damping X_uuu of Skjetne
+Table 4 (``include_xuuu``). Equations (Bejarano eqs. (3)-(7)):
+
+    eta_dot = R(psi) nu
+    M nu_dot = -C(nu) nu - D(nu) nu + tau_w + tau
+    sigma = M^-1 [-C(nu) nu - D(nu) nu + tau_w]          (eq. 6, g = 0)
+
+State layout of the batched arrays: ``x = [x, y, psi, u, v, r]`` with shape ``(B, 6)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class CyberShip2Params(BaseModel):
+    """Rigid-body, added-mass and damping coefficients (SI units, Skjetne sign convention)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["cybership2"] = "cybership2"
+    m: float = Field(23.8, gt=0, description="mass [kg]")
+    I_z: float = Field(1.76, gt=0, description="yaw moment of inertia [kg m^2]")
+    x_g: float = Field(0.046, description="CG position along x_b [m] (MSS initCS2 uses 0.0425)")
+    X_udot: float = -2.0
+    Y_vdot: float = -10.0
+    Y_rdot: float = 0.0
+    N_vdot: float = 0.0
+    N_rdot: float = -1.0
+    X_u: float = -0.72253
+    X_uu: float = Field(-1.32742, description="X_|u|u")
+    X_uuu: float = Field(-5.86643, description="cubic surge damping (Skjetne Table 4; absent from Bejarano Table II)")
+    include_xuuu: bool = Field(True, description="include X_uuu u^2 in d11 (Skjetne model)")
+    Y_v: float = -0.88965
+    Y_vv: float = Field(-36.47287, description="Y_|v|v")
+    Y_rv: float = Field(-0.805, description="Y_|r|v")
+    Y_r: float = -7.25
+    Y_vr: float = Field(-0.845, description="Y_|v|r")
+    Y_rr: float = Field(-3.45, description="Y_|r|r")
+    N_v: float = 0.0313
+    N_vv: float = Field(3.95645, description="N_|v|v")
+    N_rv: float = Field(0.13, description="N_|r|v")
+    N_r: float = -1.9
+    N_vr: float = Field(0.08, description="N_|v|r")
+    N_rr: float = Field(-0.75, description="N_|r|r")
+
+
+def inertia_matrix(p: CyberShip2Params) -> np.ndarray:
+    """M of Bejarano eq. (5) (symmetric, Y_rdot = N_vdot)."""
+    return np.array(
+        [
+            [p.m - p.X_udot, 0.0, 0.0],
+            [0.0, p.m - p.Y_vdot, p.m * p.x_g - p.Y_rdot],
+            [0.0, p.m * p.x_g - p.N_vdot, p.I_z - p.N_rdot],
+        ]
+    )
+
+
+def rotation(psi: np.ndarray) -> np.ndarray:
+    """R(psi) of eq. (4), batched: ``psi (B,) -> (B, 3, 3)``."""
+    c, s = np.cos(psi), np.sin(psi)
+    R = np.zeros(psi.shape + (3, 3))
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1] = c, -s, s, c
+    R[..., 2, 2] = 1.0
+    return R
+
+
+@dataclass(frozen=True)
+class CyberShip2:
+    """Batched CyberShip II plant. ``params`` are the true (simulated) coefficients."""
+
+    params: CyberShip2Params
+
+    n_state = 6
+
+    def __post_init__(self) -> None:
+        M = inertia_matrix(self.params)
+        object.__setattr__(self, "M", M)
+        object.__setattr__(self, "Minv", np.linalg.inv(M))
+
+    def coriolis_damping(self, nu: np.ndarray) -> np.ndarray:
+        """``C(nu) nu + D(nu) nu`` for ``nu (B, 3)`` -> ``(B, 3)``."""
+        p = self.params
+        M = self.M
+        u, v, r = nu[:, 0], nu[:, 1], nu[:, 2]
+        c13 = -(M[1, 1] * v + M[1, 2] * r)
+        c23 = M[0, 0] * u
+        Cnu = np.stack([c13 * r, c23 * r, -c13 * u - c23 * v], axis=1)
+        au, av, ar = np.abs(u), np.abs(v), np.abs(r)
+        d11 = -p.X_u - p.X_uu * au - (p.X_uuu * u**2 if p.include_xuuu else 0.0)
+        d22 = -p.Y_v - p.Y_vv * av - p.Y_rv * ar
+        d23 = -p.Y_r - p.Y_vr * av - p.Y_rr * ar
+        d32 = -p.N_v - p.N_vv * av - p.N_rv * ar
+        d33 = -p.N_r - p.N_vr * av - p.N_rr * ar
+        Dnu = np.stack([d11 * u, d22 * v + d23 * r, d32 * v + d33 * r], axis=1)
+        return Cnu + Dnu
+
+    def sigma(self, nu: np.ndarray, tau_w: np.ndarray) -> np.ndarray:
+        """True lumped disturbance sigma of eq. (6) (acceleration, body frame), ``(B, 3)``."""
+        return (tau_w - self.coriolis_damping(nu)) @ self.Minv.T
+
+    def derivative(self, x: np.ndarray, tau: np.ndarray, tau_w: np.ndarray) -> np.ndarray:
+        """Eq. (7): ``x_dot`` for state ``(B, 6)``, control ``tau`` and environment ``tau_w`` ``(B, 3)``."""
+        psi, nu = x[:, 2], x[:, 3:]
+        c, s = np.cos(psi), np.sin(psi)
+        eta_dot = np.stack([c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2]], axis=1)
+        nu_dot = (tau + tau_w - self.coriolis_damping(nu)) @ self.Minv.T
+        return np.concatenate([eta_dot, nu_dot], axis=1)

@@ -1,0 +1,1 @@
+"""State observers. Each kind has a pydantic tuning model and a batched implementation."""

@@ -1,0 +1,44 @@
+"""Observer protocol shared by every estimator (scikit-learn-like lifecycle).
+
+``design`` (pure, cached) turns a tuning into gains; the batched observer is then built from one
+tuning per run so gains that differ per run are stacked as ``(B, n, m)`` arrays. ``derivative`` is
+the continuous-time right-hand side; the engine integrates it jointly with the plant.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+
+class BatchObserver(Protocol):
+    """A batch of ``B`` observers of one kind (tunings may differ per run)."""
+
+    n_state: int
+    signals: tuple[str, ...]
+
+    def init(self) -> np.ndarray:
+        """Initial estimate ``(B, n_state)``."""
+
+    def derivative(self, xhat: np.ndarray, y: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """``d xhat / dt`` given measurement ``y (B, 3)`` and known input ``tau (B, 3)``."""
+
+    def outputs(self, xhat: np.ndarray) -> dict[str, np.ndarray]:
+        """Named estimates, each ``(B,)``."""
+
+    def max_rate(self) -> float:
+        """Largest |eigenvalue| of the error dynamics over the batch [rad/s] (for the dt check)."""
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Wrap angles to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - a, 2 * np.pi)
+
+
+def rotate2(psi: np.ndarray, xy: np.ndarray, transpose: bool = False) -> np.ndarray:
+    """Apply R2(psi) (or its transpose) to ``xy (B, 2)``."""
+    c, s = np.cos(psi), np.sin(psi)
+    if transpose:
+        s = -s
+    return np.stack([c * xy[:, 0] - s * xy[:, 1], s * xy[:, 0] + c * xy[:, 1]], axis=1)

@@ -1,0 +1,1 @@
+"""Matplotlib figures (Agg backend; no display needed)."""

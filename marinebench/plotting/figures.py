@@ -1,0 +1,47 @@
+"""Figures from the decimated traces of seed 0 of each variant."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from marinebench.config import Experiment, FigureSpec  # noqa: E402
+
+UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²"}
+NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r"}
+
+
+def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
+    names = spec.variants or [v.name for v in exp.variants]
+    index = {v.name: i for i, v in enumerate(exp.variants)}
+    labels = {v.name: v.label or v.name for v in exp.variants}
+    rows = len(spec.signals) * (2 if spec.error else 1)
+    fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True, squeeze=False)
+    axes = axes[:, 0]
+    mask = slice(None)
+    if spec.t_range is not None:
+        mask = (t >= spec.t_range[0]) & (t <= spec.t_range[1])
+    ref = int(np.flatnonzero(run_seed == 0)[0])
+    for i, sig in enumerate(spec.signals):
+        ax = axes[i * (2 if spec.error else 1)]
+        ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
+        for name in names:
+            b = int(np.flatnonzero((run_variant == index[name]) & (run_seed == 0))[0])
+            ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=labels[name])
+            if spec.error:
+                axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=labels[name])
+        ax.set_ylabel(f"{NAMES[sig]} [{UNITS[sig]}]")
+        ax.legend(loc="upper right", fontsize=7)
+        if spec.error:
+            axes[i * 2 + 1].set_ylabel(f"error [{UNITS[sig]}]")
+            axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle(spec.title or spec.file, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

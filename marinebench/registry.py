@@ -1,0 +1,30 @@
+"""Registered kinds, as accepted by the ``kind:`` discriminators of the config files."""
+
+from __future__ import annotations
+
+import typing
+
+
+def _kinds_of(union) -> dict[str, str]:
+    members = typing.get_args(typing.get_args(union)[0]) if typing.get_origin(union) is typing.Annotated else (union,)
+    out = {}
+    for m in members:
+        kind = m.model_fields["kind"].default
+        out[kind] = (m.__doc__ or "").strip().splitlines()[0]
+    return out
+
+
+def kinds() -> dict[str, dict[str, str]]:
+    from marinebench.config import ErrorMetric, ObserverTuning
+    from marinebench.environment.signals import Signal
+    from marinebench.models.cybership2 import CyberShip2Params
+    from marinebench.sensors.noise import Noise
+
+    return {
+        "vessels": _kinds_of(CyberShip2Params),
+        "observers": _kinds_of(ObserverTuning),
+        "signals": _kinds_of(Signal),
+        "noise": _kinds_of(Noise),
+        "metrics": {k: ErrorMetric.__doc__.strip().splitlines()[0] for k in typing.get_args(ErrorMetric.model_fields["kind"].annotation)},
+        "scenarios": {"open_loop_asv": "open-loop CyberShip II world (Bejarano et al. Sec. IV)"},
+    }

@@ -1,0 +1,1 @@
+"""Writing results: atomic directories, manifest, markdown tables."""

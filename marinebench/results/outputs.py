@@ -1,0 +1,54 @@
+"""Write one experiment's result directory atomically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from marinebench.experiments.runner import RunResult
+from marinebench.plotting.figures import timeseries
+from marinebench.results.tables import markdown_table
+from marinebench.results.writer import atomic_directory, manifest
+
+STANDARD_ASSUMPTIONS = [
+    "Liu-Wang-Peng ESO reconstructed (LIU19 text unavailable): eps-scaled ESO, k=(3,3,1), linear corrections "
+    "by default (shared/reference/baselines.md s.1)",
+    "Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
+    "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)",
+    "true lumped disturbance sigma from eq. (6) with g = 0",
+    "plant and observers integrated jointly by fixed-step RK4; dt refused unless dt*|lambda|max <= stiffness_limit",
+]
+
+
+def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Path:
+    exp = result.experiment
+    with atomic_directory(out_dir) as tmp:
+        (tmp / "config.resolved.yaml").write_text(
+            yaml.safe_dump(exp.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
+        )
+        result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        (tmp / "table.md").write_text(markdown_table(exp, result.summary))
+        figdir = tmp / "figures"
+        figdir.mkdir()
+        t, truth, est = result.traces
+        for spec in exp.figures:
+            timeseries(exp, spec, t, truth, est, result.run_variant, result.run_seed, figdir / spec.file)
+        (tmp / "manifest.json").write_text(
+            manifest(
+                experiment=exp.name,
+                config_files={k or "experiment": str(v) for k, v in sources.items()},
+                seed=exp.seed,
+                seeds=exp.seeds,
+                runs=int(len(result.run_seed)),
+                diverged_runs=int((result.metrics.groupby(["variant", "seed"])["status"].first() != "ok").sum()),
+                dt=exp.scenario.dt,
+                horizon=exp.scenario.horizon,
+                steps=int(round(exp.scenario.horizon / exp.scenario.dt)),
+                max_observer_rate=result.max_rate,
+                wall_time_s=round(result.wall_time, 3),
+                assumptions=STANDARD_ASSUMPTIONS + list(exp.assumptions),
+                designs=result.designs,
+            )
+        )
+    return out_dir

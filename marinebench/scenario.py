@@ -1,0 +1,124 @@
+"""Scenario (the *world*): vessel, initial state, excitation, disturbances, sensors, horizon, dt.
+
+``build_world`` turns a validated scenario into a batched :class:`OpenLoopASV` for given seeds. Every
+random draw of seed ``j`` comes from ``SeedSequence(root, spawn_key=(j, crc32(stream)))``, so a run's
+world does not depend on the batch size, on the other variants or on the order of the streams.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
+from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
+from marinebench.sensors.noise import NoiseBatch, NoNoise, Noise
+
+Vec3 = tuple[float, float, float]
+
+
+class Initial(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    eta: Vec3 = Field((0.0, 10.0, 0.0), description="eta(0) = [x, y, psi] [m, m, rad]")
+    nu: Vec3 = Field((0.0, 0.0, 0.0), description="nu(0) = [u, v, r] [m/s, m/s, rad/s]")
+
+
+class Inputs(BaseModel):
+    """Open-loop control tau = [F_u, 0, tau_r] (underactuated in sway)."""
+
+    model_config = ConfigDict(extra="forbid")
+    F_u: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(2.0, 4.0), amplitude=(0.5, 2.0)))
+    tau_r: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.1, 0.1), amplitude=(0.1, 0.3)))
+
+
+class Disturbances(BaseModel):
+    """Environmental forces tau_w = [F_wu, F_wv, tau_wr] in the body frame."""
+
+    model_config = ConfigDict(extra="forbid")
+    F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
+    F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
+    tau_wr: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.0, 0.1)))
+
+
+class Sensors(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    position_noise: Noise = Field(default_factory=NoNoise, description="noise on the measured x, y")
+
+
+class Scenario(BaseModel):
+    """An open-loop ASV world (Bejarano et al. Sec. IV)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(..., min_length=1)
+    description: str = ""
+    vessel: CyberShip2Params = Field(default_factory=CyberShip2Params)
+    initial: Initial = Field(default_factory=Initial)
+    inputs: Inputs = Field(default_factory=Inputs)
+    disturbances: Disturbances = Field(default_factory=Disturbances)
+    sensors: Sensors = Field(default_factory=Sensors)
+    horizon: float = Field(..., gt=0, description="simulated time [s]")
+    dt: float = Field(..., gt=0, description="integration step [s]")
+
+    @model_validator(mode="after")
+    def _dt_below_horizon(self) -> "Scenario":
+        if self.dt > self.horizon:
+            raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
+        return self
+
+
+def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Generator]:
+    """One generator per seed index for the named random stream."""
+    key = zlib.crc32(stream.encode())
+    return [np.random.default_rng(np.random.SeedSequence(root, spawn_key=(j, key))) for j in seeds]
+
+
+class OpenLoopASV:
+    """Batched open-loop CyberShip II world; run ``b`` uses seed ``seed_of_run[b]``."""
+
+    def __init__(self, scenario: Scenario, root_seed: int, seed_of_run: np.ndarray) -> None:
+        self.scenario = scenario
+        self.plant = CyberShip2(scenario.vessel)
+        seeds = sorted(set(int(s) for s in seed_of_run))
+        where = np.searchsorted(seeds, seed_of_run)
+
+        def signal(name: str, spec) -> SinusoidBatch:
+            return spec.sample(stream_rngs(root_seed, seeds, name)).take(where)
+
+        self.F_u = signal("F_u", scenario.inputs.F_u)
+        self.tau_r = signal("tau_r", scenario.inputs.tau_r)
+        self.F_wu = signal("F_wu", scenario.disturbances.F_wu)
+        self.F_wv = signal("F_wv", scenario.disturbances.F_wv)
+        self.tau_wr = signal("tau_wr", scenario.disturbances.tau_wr)
+        noise = scenario.sensors.position_noise.sample(stream_rngs(root_seed, seeds, "position_noise"), 2)
+        self.noise: NoiseBatch | None = noise.take(where) if noise is not None else None
+        B = len(seed_of_run)
+        self.x0 = np.tile(np.array(scenario.initial.eta + scenario.initial.nu, dtype=float), (B, 1))
+        self._zeros = np.zeros(B)
+
+    def forces(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Control tau and environmental tau_w at time t, each ``(B, 3)``."""
+        tau = np.stack([self.F_u(t), self._zeros, self.tau_r(t)], axis=1)
+        tau_w = np.stack([self.F_wu(t), self.F_wv(t), self.tau_wr(t)], axis=1)
+        return tau, tau_w
+
+    def measure(self, t: float, x: np.ndarray) -> np.ndarray:
+        """y = eta + n (eq. 8), heading noiseless (Assumption 3)."""
+        y = x[:, :3].copy()
+        if self.noise is not None:
+            y[:, :2] += self.noise(t)
+        return y
+
+    def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tau, tau_w = self.forces(t)
+        return self.plant.derivative(x, tau, tau_w), self.measure(t, x), tau
+
+    def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
+        _, tau_w = self.forces(t)
+        sigma = self.plant.sigma(x[:, 3:], tau_w)
+        return {
+            "u": x[:, 3], "v": x[:, 4], "r": x[:, 5],
+            "sigma_u": sigma[:, 0], "sigma_v": sigma[:, 1], "sigma_r": sigma[:, 2],
+            "x": x[:, 0], "y": x[:, 1], "psi": x[:, 2],
+        }

@@ -1,0 +1,1 @@
+"""The one batched fixed-step simulation engine and its streaming recorders."""

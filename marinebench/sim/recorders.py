@@ -1,0 +1,83 @@
+"""Streaming recorders: error moments over a time window and decimated traces for figures."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class ErrorMoments:
+    """Welford running mean/variance of ``est - truth`` per signal over ``t >= t_start``.
+
+    Also accumulates the mean square (for RMSE) and the maximum absolute error. Memory is O(B) per
+    signal, independent of the horizon.
+    """
+
+    def __init__(self, signals: list[str], t_start: float, t_end: float = np.inf) -> None:
+        self.signals, self.t_start, self.t_end = list(signals), t_start, t_end
+        self.n = 0
+        self.mean: dict[str, np.ndarray] = {}
+        self.m2: dict[str, np.ndarray] = {}
+        self.msq: dict[str, np.ndarray] = {}
+        self.maxabs: dict[str, np.ndarray] = {}
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        if t < self.t_start - 1e-12 or t > self.t_end + 1e-12:
+            return
+        self.n += 1
+        for name in self.signals:
+            e = est[name] - truth[name]
+            if self.n == 1:
+                self.mean[name] = e.copy()
+                self.m2[name] = np.zeros_like(e)
+                self.msq[name] = e**2
+                self.maxabs[name] = np.abs(e)
+                continue
+            delta = e - self.mean[name]
+            self.mean[name] += delta / self.n
+            self.m2[name] += delta * (e - self.mean[name])
+            self.msq[name] += (e**2 - self.msq[name]) / self.n
+            self.maxabs[name] = np.fmax(self.maxabs[name], np.abs(e))
+
+    def result(self, metric: str) -> dict[str, np.ndarray]:
+        """Per-run values of ``std`` (population), ``rmse``, ``mean`` or ``max_abs`` for each signal."""
+        if self.n == 0:
+            raise ValueError(f"no samples in the metric window t in [{self.t_start}, {self.t_end}]")
+        out = {}
+        for name in self.signals:
+            if metric == "std":
+                out[name] = np.sqrt(self.m2[name] / self.n)
+            elif metric == "rmse":
+                out[name] = np.sqrt(self.msq[name])
+            elif metric == "mean":
+                out[name] = self.mean[name].copy()
+            elif metric == "max_abs":
+                out[name] = self.maxabs[name].copy()
+            else:
+                raise KeyError(metric)
+        return out
+
+
+class Traces:
+    """Truth and estimates every ``every`` steps, for figures. Arrays are ``(T, B)``."""
+
+    def __init__(self, signals: list[str], every: int) -> None:
+        self.signals, self.every = list(signals), max(1, every)
+        self.t: list[float] = []
+        self.truth: dict[str, list[np.ndarray]] = {s: [] for s in signals}
+        self.est: dict[str, list[np.ndarray]] = {s: [] for s in signals}
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        if k % self.every:
+            return
+        self.t.append(t)
+        for s in self.signals:
+            self.truth[s].append(truth[s].copy())
+            if s in est:
+                self.est[s].append(est[s].copy())
+
+    def arrays(self) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
+        return (
+            np.asarray(self.t),
+            {s: np.asarray(v) for s, v in self.truth.items()},
+            {s: np.asarray(v) for s, v in self.est.items() if v},
+        )
