@@ -82,6 +82,7 @@ class EngineOptions(BaseModel):
     stiffness_limit: float = Field(
         0.5, gt=0, le=2.78, description="refuse dt unless dt*|lambda|max <= this (RK4 stable below 2.78)"
     )
+    check_step: bool = Field(True, description="refuse a dt too large for the observer poles (off: at your own risk)")
     trace_dt: float = Field(0.02, gt=0, description="sampling interval of the traces kept for figures [s]")
 
 

@@ -79,11 +79,11 @@ def run(exp: Experiment, progress: Callable[[int], None] | None = None, on_start
     sc = exp.scenario
     world = OpenLoopASV(sc, exp.seed, run_seed)
     groups = build_groups(exp, run_variant, world.plant.Minv)
-    rate = check_step(groups, sc.dt, exp.engine.stiffness_limit)
+    rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
     n_steps = int(round(sc.horizon / sc.dt))
     moments = [ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon) for m in exp.metrics]
-    fig_signals = sorted({s for f in exp.figures for s in f.signals} | {"u"})
-    traces = Traces(fig_signals, int(round(exp.engine.trace_dt / sc.dt)))
+    trace_signals = sorted({s for g in groups for s in g.observer.signals})
+    traces = Traces(trace_signals, int(round(exp.engine.trace_dt / sc.dt)))
     if on_start is not None:
         on_start(n_steps)
     t0 = time.perf_counter()

@@ -1,0 +1,31 @@
+"""Shared fixtures: small, fast configs written to tmp paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def tiny_config(tmp_path: Path) -> Path:
+    """A 4-s noisy experiment with two variants and two seeds (runs in about a second)."""
+    doc = {
+        "description": "tiny",
+        "scenario": {"from": str(ROOT / "scenarios" / "cs2_noisy.yaml"), "horizon": 4.0, "dt": 0.01},
+        "seeds": 2,
+        "variants": [
+            {"name": "liu_eps0.2", "observer": {"kind": "liu_eso", "eps": 0.2}},
+            {"name": "proposed_d1.2", "observer": {"kind": "bejarano", "delta_psi1": 1.2, "delta_p1": 1.2, "k_n": 1}},
+        ],
+        "metrics": [{"kind": "std", "t_start": 1.0}],
+        "table": {"title": "tiny", "metric": "std", "signals": ["u", "sigma_u"],
+                  "paper": {"source": "nobody", "values": {"liu_eps0.2": {"u": 0.09}}}},
+        "figures": [{"file": "u.png", "signals": ["u"]}],
+    }
+    path = tmp_path / "tiny.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path

@@ -1,0 +1,73 @@
+"""LMI designs re-verified independently of the solver (numpy only)."""
+
+import numpy as np
+import pytest
+
+from marinebench.design.lmi import (
+    A0_P, A_PSI, BW_P, BW_PSI, C_P, C_PSI, S_TP, positional_design, rotational_design, verify,
+)
+from marinebench.errors import DesignError
+from marinebench.observers.bejarano import BejaranoTuning, design
+
+
+def max_eig(X):
+    return np.max(np.linalg.eigvalsh((X + X.T) / 2))
+
+
+@pytest.mark.parametrize("delta,rho", [(0.05, 50.0), (2.2, 50.0), (300.0, 1500.0)])
+def test_rotational_lmis_hold(delta, rho):
+    sol = rotational_design(delta, rho)
+    assert verify(sol, delta, rho) == []
+    P, W, s = sol.P, sol.W, sol.time_scale
+    assert np.min(np.linalg.eigvalsh(P)) > 0
+    lyap = A_PSI.T @ P + P @ A_PSI + C_PSI.T @ W.T + W @ C_PSI
+    scale = np.abs(P).max()
+    assert max_eig(lyap + np.eye(3)) <= 1e-6 * scale  # (16c) in the (possibly time-scaled) coordinates
+    assert max_eig(lyap + 2 * delta / s * P) <= 1e-6 * scale  # (25)
+    assert np.linalg.norm(P @ BW_PSI, 2) <= sol.beta * (1 + 1e-6)  # (16d) <=> ||P B|| <= beta
+    poles = np.linalg.eigvals(A_PSI - sol.gain @ C_PSI)
+    assert poles.real.max() <= -delta * (1 - 1e-6)
+    assert np.abs(poles).max() <= rho * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("delta,kw,kn,rho", [(0.05, 1, 0, 50.0), (1.2, 1, 1, 50.0), (400.0, 1, 0, 2000.0), (0.0, 100, 1, 50.0)])
+def test_positional_lmis_hold(delta, kw, kn, rho):
+    r_max = 0.8727
+    sol = positional_design(delta, kw, kn, -r_max, r_max, rho)
+    assert verify(sol, delta, rho) == []
+    P, W, s = sol.P, sol.W, sol.time_scale
+    scale = np.abs(P).max()
+    for r in (-r_max / s, r_max / s):
+        lyap = A0_P.T @ P + P @ A0_P + C_P.T @ W.T + W @ C_P + r * (S_TP.T @ P + P @ S_TP)
+        assert max_eig(lyap + np.eye(6)) <= 1e-6 * scale  # (28c), (28d)
+        assert max_eig(lyap + 2 * delta / s * P) <= 1e-6 * scale  # (48)
+    upsilon = np.hstack([kw * P @ BW_P, kn * W])
+    assert np.linalg.norm(upsilon, 2) <= sol.beta * (1 + 1e-5)  # (28e) <=> ||Upsilon|| <= beta
+    for r in np.linspace(-r_max, r_max, 7):  # the vertex LMIs cover the whole yaw-rate interval
+        assert np.linalg.eigvals(A0_P + r * S_TP + sol.gain @ C_P).real.max() < -delta * (1 - 1e-6)
+
+
+def test_frozen_heading_poles_equal_transformed_poles():
+    """T_p is a similarity at frozen psi: eig(A_p(psi) - L_p(psi) C_p) = eig(A0 + L_pz C_p)."""
+    L_pz = positional_design(1.2, 1.0, 1.0, -0.8727, 0.8727, 50.0).gain
+    ref = np.sort_complex(np.linalg.eigvals(A0_P + L_pz @ C_P))
+    for psi in (0.3, 1.7, -2.5):
+        c, s = np.cos(psi), np.sin(psi)
+        R2 = np.array([[c, -s], [s, c]])
+        Ap = np.zeros((6, 6)); Ap[0:2, 2:4] = R2; Ap[2:4, 4:6] = np.eye(2)
+        Tinv = np.eye(6); Tinv[0:2, 0:2] = R2
+        Lp = -Tinv @ L_pz @ R2.T  # eq. (26)
+        got = np.sort_complex(np.linalg.eigvals(Ap - Lp @ C_P))
+        np.testing.assert_allclose(got, ref, rtol=1e-8, atol=1e-8)
+
+
+def test_infeasible_lmi_raises_design_error():
+    with pytest.raises(DesignError, match="infeasible"):
+        positional_design(1.0, 1.0, 1.0, -5.0, 5.0, 1.2)
+
+
+def test_faster_design_has_faster_poles_and_larger_bound():
+    slow = design(BejaranoTuning(delta_psi1=1.2, delta_p1=1.2, k_n=1))[1]
+    fast = design(BejaranoTuning(delta_psi1=2.2, delta_p1=2.2, k_n=1))[1]
+    assert fast.poles.real.max() < slow.poles.real.max()
+    assert fast.beta > slow.beta  # Remark 5: faster poles -> larger final error bound

@@ -1,0 +1,48 @@
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from marinebench.models.cybership2 import CyberShip2, CyberShip2Params, inertia_matrix, rotation
+
+
+def test_cs2_inertia_matrix_matches_published_values():
+    M = inertia_matrix(CyberShip2Params())
+    expected = np.array([[25.8, 0, 0], [0, 33.8, 1.0948], [0, 1.0948, 2.76]])
+    np.testing.assert_allclose(M, expected, atol=1e-12)
+
+
+def test_mss_xg_variant_changes_m23():
+    assert np.isclose(inertia_matrix(CyberShip2Params(x_g=0.0425))[1, 2], 1.0115)
+
+
+@given(st.floats(-10, 10))
+def test_rotation_is_orthogonal(psi):
+    R = rotation(np.array([psi]))[0]
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.isclose(np.linalg.det(R), 1.0)
+
+
+@settings(max_examples=25)
+@given(st.lists(st.floats(-1.5, 1.5), min_size=9, max_size=9))
+def test_sigma_truth_identity(vals):
+    """Eq. (7): nu_dot = M^-1 tau + sigma, with sigma from eq. (6)."""
+    plant = CyberShip2(CyberShip2Params())
+    x = np.array([[0.0, 0.0, vals[0], vals[1], vals[2], vals[3]]])
+    tau = np.array([[vals[4], 0.0, vals[5]]])
+    tau_w = np.array([vals[6:9]])
+    nu_dot = plant.derivative(x, tau, tau_w)[:, 3:]
+    sigma = plant.sigma(x[:, 3:], tau_w)
+    np.testing.assert_allclose(nu_dot, tau @ plant.Minv.T + sigma, atol=1e-12)
+
+
+def test_unforced_vessel_dissipates_kinetic_energy():
+    plant = CyberShip2(CyberShip2Params())
+    x = np.array([[0, 0, 0.3, 0.8, -0.3, 0.4]], dtype=float)
+    zero = np.zeros((1, 3))
+    energy = []
+    for _ in range(2000):
+        nu = x[0, 3:]
+        energy.append(0.5 * nu @ plant.M @ nu)
+        x = x + 0.005 * plant.derivative(x, zero, zero)
+    assert np.all(np.diff(energy) < 0)
+    assert energy[-1] < 0.05 * energy[0]
