@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from marinebench.errors import ConfigError, MarinebenchError
+from marinebench.errors import MarinebenchError, StiffnessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation benchmarks for marine-vehicle observers.")
 err = Console(stderr=True, highlight=False, soft_wrap=True)
@@ -28,14 +28,17 @@ def fail(message: str, code: int = 2) -> None:
 
 
 def _load(config: Path, sets: list[str], seed: Optional[int], seeds: Optional[int]):
-    from marinebench.config import load_experiment
+    """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
+    from marinebench.config import load_experiment, preflight
 
     sets = list(sets)
     if seed is not None:
         sets.append(f"seed={seed}")
     if seeds is not None:
         sets.append(f"seeds={seeds}")
-    return load_experiment(config, sets)
+    exp, origins = load_experiment(config, sets)
+    preflight(exp, config)
+    return exp, origins
 
 
 @app.command()
@@ -70,11 +73,10 @@ def run(
                     on_start=lambda n: bar.update(task, total=n),
                 )
                 bar.update(task, completed=bar.tasks[0].total)
-        except ConfigError as exc:
-            fail(str(exc))
+        except StiffnessError as exc:
+            fail(f"{path}: scenario.dt: {exc}")
         except MarinebenchError as exc:
-            key = "scenario.dt" if exc.__class__.__name__ == "StiffnessError" else "variants"
-            fail(f"{path}: {key}: {exc}")
+            fail(f"{path}: {exc}")
         write_run(result, target, origins)
         n_div = int((result.metrics["status"] != "ok").sum())
         if n_div:
@@ -87,20 +89,13 @@ def run(
 def validate(files: Annotated[list[Path], typer.Argument(help="experiment or scenario YAML files")]) -> None:
     """Check configs (and solve their observer designs) without running them."""
     from marinebench.config import is_scenario_file, load_scenario
-    from marinebench.observers import bejarano
 
     for f in files:
         try:
             if is_scenario_file(f):
                 load_scenario(f)
             else:
-                exp, _ = _load(f, [], None, None)
-                for i, v in enumerate(exp.variants):
-                    if v.observer.kind == "bejarano":
-                        try:
-                            bejarano.design(v.observer)
-                        except MarinebenchError as exc:
-                            raise ConfigError(f, f"variants.{i}.observer", str(exc)) from None
+                _load(f, [], None, None)
         except MarinebenchError as exc:
             fail(str(exc))
         out.print(f"{f}: ok", markup=False)

@@ -157,6 +157,13 @@ def _deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
+def _leaf_paths(d: dict, prefix: str) -> list[str]:
+    out = []
+    for k, v in d.items():
+        out += _leaf_paths(v, f"{prefix}.{k}") if isinstance(v, dict) and v else [f"{prefix}.{k}"]
+    return out
+
+
 _TOKEN = re.compile(r"([^.\[\]]+)|\[([^\]]+)\]")
 
 
@@ -225,8 +232,11 @@ def resolve_document(path: Path, sets: list[str] = ()) -> tuple[dict, dict[str, 
             raise ConfigError(path, "scenario", f"scenario file not found: {ref}")
         doc["scenario"] = _deep_merge(_read_yaml(spath), overrides)
         origins["scenario"] = spath
+        for dotted in _leaf_paths(overrides, "scenario"):
+            origins["override " + dotted] = path
     for s in sets:
         apply_set(doc, s)
+        origins["--set " + s.split("=", 1)[0].strip()] = Path("--set")
     return doc, origins
 
 
@@ -239,6 +249,10 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
     err = exc.errors()[0]
     key = _loc(err["loc"])
     file = origins.get("scenario") if key.startswith("scenario") and "scenario" in origins else origins[""]
+    for origin, source in origins.items():
+        for tag in ("override ", "--set "):
+            if origin.startswith(tag) and (key == origin[len(tag):] or key.startswith(origin[len(tag):] + ".")):
+                file = source
     msg = err["msg"]
     if err["type"] == "extra_forbidden":
         msg = "unknown key"
@@ -255,6 +269,28 @@ def load_experiment(path: str | Path, sets: list[str] = ()) -> tuple[Experiment,
     except ValidationError as exc:
         raise validation_to_config_error(exc, origins) from None
     return exp, origins
+
+
+def preflight(exp: Experiment, file: Path) -> None:
+    """Solve every variant's observer design and check the step before anything runs, so an infeasible
+    LMI or a too-large dt is a config error naming the file and key."""
+    from marinebench.errors import DesignError, StiffnessError
+    from marinebench.experiments.runner import OBSERVERS
+    from marinebench.models.cybership2 import CyberShip2
+    from marinebench.sim.engine import ObserverGroup, check_step
+
+    Minv = CyberShip2(exp.scenario.vessel).Minv
+    groups = []
+    for i, v in enumerate(exp.variants):
+        try:
+            groups.append(ObserverGroup(OBSERVERS[v.observer.kind]([v.observer], Minv), [0]))
+        except DesignError as exc:
+            raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+    if exp.engine.check_step:
+        try:
+            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
+        except StiffnessError as exc:
+            raise ConfigError(file, "scenario.dt", str(exc)) from None
 
 
 def load_scenario(path: str | Path) -> Scenario:

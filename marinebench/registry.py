@@ -15,7 +15,7 @@ def _kinds_of(union) -> dict[str, str]:
 
 
 def kinds() -> dict[str, dict[str, str]]:
-    from marinebench.config import ErrorMetric, ObserverTuning
+    from marinebench.config import ObserverTuning
     from marinebench.environment.signals import Signal
     from marinebench.models.cybership2 import CyberShip2Params
     from marinebench.sensors.noise import Noise
@@ -25,6 +25,10 @@ def kinds() -> dict[str, dict[str, str]]:
         "observers": _kinds_of(ObserverTuning),
         "signals": _kinds_of(Signal),
         "noise": _kinds_of(Noise),
-        "metrics": {k: ErrorMetric.__doc__.strip().splitlines()[0] for k in typing.get_args(ErrorMetric.model_fields["kind"].annotation)},
+        "metrics": {
+            "std": "standard deviation of est - truth over the window (Bejarano Tables III/IV)",
+            "rmse": "root mean square of est - truth over the window",
+            "max_abs": "largest |est - truth| over the window (peaking)",
+        },
         "scenarios": {"open_loop_asv": "open-loop CyberShip II world (Bejarano et al. Sec. IV)"},
     }

@@ -1,0 +1,120 @@
+"""CLI through typer's CliRunner: run, validate, schema, list, and every bad-config case."""
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+
+from .conftest import ROOT
+
+runner = CliRunner()
+
+
+def test_run_writes_every_output(tiny_config, tmp_path):
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(out), "--quiet"])
+    assert res.exit_code == 0, res.output
+    d = out / "tiny"
+    assert sorted(p.name for p in d.iterdir()) == ["config.resolved.yaml", "figures", "manifest.json", "metrics.csv", "table.md"]
+    m = pd.read_csv(d / "metrics.csv")
+    assert {"experiment", "scenario", "variant", "seed", "signal", "metric", "value"} <= set(m.columns)
+    assert len(m) == 2 * 2 * 6  # variants x seeds x signals
+    man = json.loads((d / "manifest.json").read_text())
+    assert man["seed"] == 2024 and man["versions"]["numpy"] and man["git_revision"] and man["assumptions"]
+    assert (d / "figures" / "u.png").stat().st_size > 1000
+    table = (d / "table.md").read_text()
+    assert "e_u paper" in table and "0.09" in table and "not computed" in table
+    resolved = yaml.safe_load((d / "config.resolved.yaml").read_text())
+    assert resolved["scenario"]["dt"] == 0.01 and resolved["variants"][1]["observer"]["rho"] is None
+
+
+def test_seed_seeds_and_set_options(tiny_config, tmp_path):
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--quiet", "--seed", "9",
+                              "--seeds", "3", "--set", "variants[liu_eps0.2].observer.eps=0.3"])
+    assert res.exit_code == 0, res.output
+    resolved = yaml.safe_load((tmp_path / "tiny" / "config.resolved.yaml").read_text())
+    assert resolved["seed"] == 9 and resolved["seeds"] == 3
+    assert resolved["variants"][0]["observer"]["eps"] == 0.3
+    assert pd.read_csv(tmp_path / "tiny" / "metrics.csv")["seed"].nunique() == 3
+
+
+def test_rerun_replaces_results_atomically(tiny_config, tmp_path):
+    out = tmp_path / "out"
+    for _ in range(2):
+        assert runner.invoke(app, ["run", str(tiny_config), "--out", str(out), "--quiet"]).exit_code == 0
+    assert [p.name for p in out.iterdir()] == ["tiny"]  # no temp or backup directories left
+
+
+def edit(path: Path, tmp_path: Path, name: str, fn) -> Path:
+    doc = yaml.safe_load(path.read_text())
+    fn(doc)
+    new = tmp_path / f"{name}.yaml"
+    new.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return new
+
+
+BAD = {
+    "unknown_key": (lambda d: d.update(bogus=1), "bogus: unknown key"),
+    "wrong_type": (lambda d: d["variants"][0]["observer"].update(eps="fast"), "variants.0.observer.eps"),
+    "out_of_range": (lambda d: d["scenario"].update(dt=-0.01), "scenario.dt: Input should be greater than 0"),
+    "missing_scenario": (lambda d: d["scenario"].update({"from": "nowhere.yaml"}), "scenario: scenario file not found"),
+    "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
+                       "variants.1.observer: positional LMI"),
+    "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_config_one_line_exit_2_nothing_written(case, tiny_config, tmp_path):
+    fn, expected = BAD[case]
+    bad = edit(tiny_config, tmp_path, case, fn)
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["run", str(tiny_config), str(bad), "--out", str(out), "--quiet"])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in res.output, res.output
+    assert lines[0].startswith(f"error: {bad}") and expected in lines[0], lines[0]
+    assert not out.exists()  # the valid first config was not run either
+
+
+def test_invalid_yaml(tmp_path):
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("variants: [\n  name: x\n")
+    res = runner.invoke(app, ["validate", str(bad)])
+    assert res.exit_code == 2 and "broken.yaml: invalid YAML: line 3" in res.output
+
+
+def test_bad_set_names_the_option(tiny_config, tmp_path):
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--set", "scenario.horizon=-1"])
+    assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.horizon")
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "variants[nope].observer.eps=1"])
+    assert res.exit_code == 2 and "no item named 'nope'" in res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "seeds"])
+    assert res.exit_code == 2 and "expected dotted.key=value" in res.output
+
+
+def test_validate_all_committed_configs_and_scenarios():
+    files = sorted(str(p) for p in (ROOT / "configs").glob("*.yaml")) + sorted(str(p) for p in (ROOT / "scenarios").glob("*.yaml"))
+    res = runner.invoke(app, ["validate", *files])
+    assert res.exit_code == 0, res.output
+    assert res.output.count(": ok") == len(files)
+
+
+def test_schema_is_json_schema():
+    res = runner.invoke(app, ["schema"])
+    doc = json.loads(res.output)
+    assert res.exit_code == 0 and doc["title"] == "Experiment" and "variants" in doc["properties"]
+    assert json.loads(runner.invoke(app, ["schema", "--kind", "scenario"]).output)["title"] == "Scenario"
+    assert runner.invoke(app, ["schema", "--kind", "nope"]).exit_code == 2
+
+
+def test_list_shows_registered_kinds():
+    res = runner.invoke(app, ["list"])
+    assert res.exit_code == 0
+    for kind in ("cybership2", "bejarano", "liu_eso", "random_sinusoid", "bandlimited_uniform", "std"):
+        assert kind in res.output
