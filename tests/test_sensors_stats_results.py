@@ -1,0 +1,95 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from marinebench.config import apply_set
+from marinebench.errors import ConfigError
+from marinebench.metrics.stats import mean_ci
+from marinebench.results.writer import atomic_directory
+from marinebench.scenario import stream_rngs
+from marinebench.sensors.noise import BandLimitedUniform
+from marinebench.sim.recorders import ErrorMoments
+
+
+def sample_noise(spec, seed=0, T=200.0, dt=0.05):
+    batch = spec.sample(stream_rngs(seed, [0], "noise"), 2)
+    t = np.arange(0, T, dt)
+    return t, np.array([batch(tk)[0] for tk in t])  # (T, 2)
+
+
+def test_noise_is_bounded_and_band_limited():
+    spec = BandLimitedUniform(bound=0.2, rms=0.15)  # heavy saturation still stays bounded
+    _, n = sample_noise(spec)
+    assert np.abs(n).max() <= 0.2 + 1e-12
+    spec = BandLimitedUniform(bound=10.0, rms=0.033)  # no saturation: energy only in 0.1-0.5 Hz
+    t, n = sample_noise(spec, T=400.0)
+    f = np.fft.rfftfreq(len(t), 0.05)
+    P = np.abs(np.fft.rfft(n[:, 0])) ** 2
+    inband = (f >= 0.09) & (f <= 0.51)
+    assert P[inband].sum() / P.sum() > 0.97
+    assert abs(n.std() / 0.033 - 1) < 0.15
+
+
+def test_noise_reproducible_and_channels_independent():
+    spec = BandLimitedUniform()
+    _, a = sample_noise(spec, seed=3)
+    _, b = sample_noise(spec, seed=3)
+    _, c = sample_noise(spec, seed=4)
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a, c)
+    assert abs(np.corrcoef(a.T)[0, 1]) < 0.3
+
+
+def test_error_moments_match_numpy():
+    rng = np.random.default_rng(0)
+    e = rng.normal(1.0, 0.5, size=(500, 3))
+    rec = ErrorMoments(["u"], t_start=1.0, t_end=3.0)
+    for k in range(500):
+        rec.update(k, k * 0.01, {"u": np.zeros(3)}, {"u": e[k]})
+    window = e[100:301]
+    np.testing.assert_allclose(rec.result("std")["u"], window.std(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(rec.result("rmse")["u"], np.sqrt((window**2).mean(axis=0)), rtol=1e-12)
+    np.testing.assert_allclose(rec.result("max_abs")["u"], np.abs(window).max(axis=0))
+
+
+@settings(max_examples=30)
+@given(st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=40))
+def test_mean_ci_contains_mean(values):
+    m, lo, hi = mean_ci(np.array(values))
+    assert lo <= m + 1e-9 and m <= hi + 1e-9
+
+
+def test_mean_ci_coverage():
+    rng = np.random.default_rng(1)
+    hits = sum(lo <= 2.0 <= hi for lo, hi in (mean_ci(rng.normal(2.0, 1.0, 5))[1:] for _ in range(2000)))
+    assert 0.93 < hits / 2000 < 0.97
+
+
+def test_mean_ci_ignores_nan_and_single_value():
+    m, lo, hi = mean_ci(np.array([1.0, np.nan]))
+    assert m == 1.0 and np.isnan(lo) and np.isnan(hi)
+
+
+def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
+    target = tmp_path / "exp"
+    with atomic_directory(target) as d:
+        (d / "a.txt").write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_directory(target) as d:
+            (d / "a.txt").write_text("half")
+            raise RuntimeError("interrupted")
+    assert (target / "a.txt").read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["exp"]
+
+
+def test_apply_set_paths():
+    doc = {"seeds": 1, "variants": [{"name": "a.b", "observer": {"eps": 1}}], "scenario": {"dt": 1}}
+    apply_set(doc, "variants[a.b].observer.eps=0.5")
+    apply_set(doc, "variants.0.name=c")
+    apply_set(doc, "scenario.sensors.position_noise.kind=none")
+    apply_set(doc, "seeds=3")
+    assert doc["variants"][0] == {"name": "c", "observer": {"eps": 0.5}}
+    assert doc["scenario"]["sensors"] == {"position_noise": {"kind": "none"}} and doc["seeds"] == 3
+    with pytest.raises(ConfigError, match="not a valid index"):
+        apply_set(doc, "variants.5.name=x")
