@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -27,7 +27,7 @@ def fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
-def _load(config: Path, sets: list[str], seed: Optional[int], seeds: Optional[int]):
+def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
     from marinebench.config import load_experiment, preflight
 
@@ -44,10 +44,10 @@ def _load(config: Path, sets: list[str], seed: Optional[int], seeds: Optional[in
 @app.command()
 def run(
     configs: Annotated[list[Path], typer.Argument(help="experiment YAML files")],
-    out_dir: Annotated[Optional[Path], typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
-    seed: Annotated[Optional[int], typer.Option(help="root seed (overrides the config)")] = None,
-    seeds: Annotated[Optional[int], typer.Option(help="Monte-Carlo runs per variant")] = None,
-    set_: Annotated[list[str], typer.Option("--set", help="override a config field: dotted.key=value")] = [],
+    out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
+    seed: Annotated[int | None, typer.Option(help="root seed (overrides the config)")] = None,
+    seeds: Annotated[int | None, typer.Option(help="Monte-Carlo runs per variant")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md, figures/."""
@@ -55,7 +55,7 @@ def run(
     from marinebench.results.outputs import write_run
 
     try:
-        loaded = [(c, *_load(c, set_, seed, seeds)) for c in configs]  # validate everything first
+        loaded = [(c, *_load(c, set_ or [], seed, seeds)) for c in configs]  # validate everything first
     except MarinebenchError as exc:
         fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
@@ -69,8 +69,8 @@ def run(
                 task = bar.add_task(exp.name, total=1)
                 result = run_experiment(
                     exp,
-                    progress=lambda n: bar.advance(task, n),
-                    on_start=lambda n: bar.update(task, total=n),
+                    progress=lambda n, task=task: bar.advance(task, n),
+                    on_start=lambda n, task=task: bar.update(task, total=n),
                 )
                 bar.update(task, completed=bar.tasks[0].total)
         except StiffnessError as exc:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -21,7 +21,7 @@ from marinebench.observers.bejarano import BejaranoTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
 from marinebench.scenario import Scenario
 
-ObserverTuning = Annotated[Union[BejaranoTuning, LiuEsoTuning], Field(discriminator="kind")]
+ObserverTuning = Annotated[BejaranoTuning | LiuEsoTuning, Field(discriminator="kind")]
 NAME = r"^[A-Za-z0-9_.+-]+$"
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
 
@@ -103,7 +103,7 @@ class Experiment(BaseModel):
     assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
 
     @model_validator(mode="after")
-    def _cross_references(self) -> "Experiment":
+    def _cross_references(self) -> Experiment:
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
 from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
-from marinebench.sensors.noise import NoiseBatch, NoNoise, Noise
+from marinebench.sensors.noise import Noise, NoiseBatch, NoNoise
 
 Vec3 = tuple[float, float, float]
 
@@ -62,7 +62,7 @@ class Scenario(BaseModel):
     dt: float = Field(..., gt=0, description="integration step [s]")
 
     @model_validator(mode="after")
-    def _dt_below_horizon(self) -> "Scenario":
+    def _dt_below_horizon(self) -> Scenario:
         if self.dt > self.horizon:
             raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
         return self
@@ -80,7 +80,7 @@ class OpenLoopASV:
     def __init__(self, scenario: Scenario, root_seed: int, seed_of_run: np.ndarray) -> None:
         self.scenario = scenario
         self.plant = CyberShip2(scenario.vessel)
-        seeds = sorted(set(int(s) for s in seed_of_run))
+        seeds = sorted({int(s) for s in seed_of_run})
         where = np.searchsorted(seeds, seed_of_run)
 
         def signal(name: str, spec) -> SinusoidBatch:

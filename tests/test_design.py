@@ -4,7 +4,16 @@ import numpy as np
 import pytest
 
 from marinebench.design.lmi import (
-    A0_P, A_PSI, BW_P, BW_PSI, C_P, C_PSI, S_TP, positional_design, rotational_design, verify,
+    A0_P,
+    A_PSI,
+    BW_P,
+    BW_PSI,
+    C_P,
+    C_PSI,
+    S_TP,
+    positional_design,
+    rotational_design,
+    verify,
 )
 from marinebench.errors import DesignError
 from marinebench.observers.bejarano import BejaranoTuning, design

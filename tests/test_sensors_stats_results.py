@@ -75,10 +75,9 @@ def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
     target = tmp_path / "exp"
     with atomic_directory(target) as d:
         (d / "a.txt").write_text("old")
-    with pytest.raises(RuntimeError):
-        with atomic_directory(target) as d:
-            (d / "a.txt").write_text("half")
-            raise RuntimeError("interrupted")
+    with pytest.raises(RuntimeError), atomic_directory(target) as d:
+        (d / "a.txt").write_text("half")
+        raise RuntimeError("interrupted")
     assert (target / "a.txt").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 

@@ -6,7 +6,7 @@ amplitude, frequency and bias"; the ranges are not given and are scenario parame
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -39,7 +39,7 @@ class RandomSinusoid(_RangeModel):
             raise ValueError("amplitude and frequency ranges must be non-negative")
         return self
 
-    def sample(self, rngs: list[np.random.Generator]) -> "SinusoidBatch":
+    def sample(self, rngs: list[np.random.Generator]) -> SinusoidBatch:
         draws = np.array(
             [[g.uniform(*self.bias), g.uniform(*self.amplitude), g.uniform(*self.frequency), g.uniform(0, 2 * np.pi)]
              for g in rngs]
@@ -54,12 +54,12 @@ class Constant(BaseModel):
     kind: Literal["constant"] = "constant"
     value: float = 0.0
 
-    def sample(self, rngs: list[np.random.Generator]) -> "SinusoidBatch":
+    def sample(self, rngs: list[np.random.Generator]) -> SinusoidBatch:
         n = len(rngs)
         return SinusoidBatch(np.full(n, self.value), np.zeros(n), np.zeros(n), np.zeros(n))
 
 
-Signal = Annotated[Union[RandomSinusoid, Constant], Field(discriminator="kind")]
+Signal = Annotated[RandomSinusoid | Constant, Field(discriminator="kind")]
 
 
 class SinusoidBatch:
@@ -71,5 +71,5 @@ class SinusoidBatch:
     def __call__(self, t: float) -> np.ndarray:
         return self.bias + self.amplitude * np.sin(self.omega * t + self.phase)
 
-    def take(self, index: np.ndarray) -> "SinusoidBatch":
+    def take(self, index: np.ndarray) -> SinusoidBatch:
         return SinusoidBatch(self.bias[index], self.amplitude[index], self.omega[index] / (2 * np.pi), self.phase[index])

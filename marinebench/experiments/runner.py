@@ -7,8 +7,8 @@ Run ``b = v * seeds + j`` is variant ``v`` with seed index ``j``; all variants s
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -80,10 +80,10 @@ def run(exp: Experiment, progress: Callable[[int], None] | None = None, on_start
     world = OpenLoopASV(sc, exp.seed, run_seed)
     groups = build_groups(exp, run_variant, world.plant.Minv)
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
-    n_steps = int(round(sc.horizon / sc.dt))
+    n_steps = round(sc.horizon / sc.dt)
     moments = [ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon) for m in exp.metrics]
     trace_signals = sorted({s for g in groups for s in g.observer.signals})
-    traces = Traces(trace_signals, int(round(exp.engine.trace_dt / sc.dt)))
+    traces = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt))
     if on_start is not None:
         on_start(n_steps)
     t0 = time.perf_counter()

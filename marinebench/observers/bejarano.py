@@ -41,7 +41,7 @@ class BejaranoTuning(BaseModel):
     scale_above: float = Field(50.0, gt=0, description="solve time-scaled LMIs when delta >= this")
 
     @model_validator(mode="after")
-    def _rho_large_enough(self) -> "BejaranoTuning":
+    def _rho_large_enough(self) -> BejaranoTuning:
         for d in (self.delta_psi1, self.delta_p1):
             if self.rho is not None and self.rho <= d:
                 raise ValueError(f"rho={self.rho} must exceed delta={d}")
@@ -112,4 +112,4 @@ class BejaranoObserver:
         return float(max(rates))
 
 
-__all__ = ["BejaranoTuning", "BejaranoObserver", "design", "A0_P", "C_P"]
+__all__ = ["A0_P", "C_P", "BejaranoObserver", "BejaranoTuning", "design"]

@@ -7,10 +7,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from marinebench.config import Experiment, FigureSpec  # noqa: E402
+from marinebench.config import Experiment, FigureSpec
 
 UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²"}
 NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r"}

@@ -12,10 +12,14 @@ from marinebench.results.tables import markdown_table
 from marinebench.results.writer import atomic_directory, manifest
 
 STANDARD_ASSUMPTIONS = [
-    "Liu-Wang-Peng ESO reconstructed (LIU19 text unavailable): eps-scaled ESO, k=(3,3,1), linear corrections "
-    "by default (shared/reference/baselines.md s.1)",
-    "Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
-    "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)",
+    (
+        "Liu-Wang-Peng ESO reconstructed (LIU19 text unavailable): eps-scaled ESO, k=(3,3,1), linear corrections "
+        "by default (shared/reference/baselines.md s.1)"
+    ),
+    (
+        "Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
+        "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)"
+    ),
     "true lumped disturbance sigma from eq. (6) with g = 0",
     "plant and observers integrated jointly by fixed-step RK4; dt refused unless dt*|lambda|max <= stiffness_limit",
 ]
@@ -40,11 +44,11 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
                 config_files={k or "experiment": str(v) for k, v in sources.items()},
                 seed=exp.seed,
                 seeds=exp.seeds,
-                runs=int(len(result.run_seed)),
+                runs=len(result.run_seed),
                 diverged_runs=int((result.metrics.groupby(["variant", "seed"])["status"].first() != "ok").sum()),
                 dt=exp.scenario.dt,
                 horizon=exp.scenario.horizon,
-                steps=int(round(exp.scenario.horizon / exp.scenario.dt)),
+                steps=round(exp.scenario.horizon / exp.scenario.dt),
                 max_observer_rate=result.max_rate,
                 wall_time_s=round(result.wall_time, 3),
                 assumptions=STANDARD_ASSUMPTIONS + list(exp.assumptions),

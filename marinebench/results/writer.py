@@ -12,11 +12,11 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
-from typing import Iterator
 
 PACKAGES = ("marinebench", "numpy", "scipy", "cvxpy", "clarabel", "pydantic", "pandas", "matplotlib", "typer", "pyyaml")
 
@@ -65,12 +65,12 @@ def git_revision() -> str:
     """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` outside a git checkout."""
     here = Path(__file__).resolve().parent
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10)
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10, check=False)
         if sha.returncode:
             return "unknown"
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--", "marinebench", "configs", "scenarios", "pyproject.toml"],
-            cwd=here.parent, capture_output=True, text=True, timeout=10,
+            cwd=here.parent, capture_output=True, text=True, timeout=10, check=False,
         )
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
@@ -79,7 +79,7 @@ def git_revision() -> str:
 
 def manifest(**fields) -> str:
     doc = {
-        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]),
         "git_revision": git_revision(),
         "versions": versions(),

@@ -10,7 +10,7 @@ time (so RK4 stages see a consistent signal), and reproducible per seed.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -22,7 +22,7 @@ class NoNoise(BaseModel):
     model_config = ConfigDict(extra="forbid")
     kind: Literal["none"] = "none"
 
-    def sample(self, rngs: list[np.random.Generator], channels: int) -> "NoiseBatch | None":
+    def sample(self, rngs: list[np.random.Generator], channels: int) -> NoiseBatch | None:
         return None
 
 
@@ -46,7 +46,7 @@ class BandLimitedUniform(BaseModel):
             raise ValueError(f"f_low={self.f_low} must be below f_high={self.f_high}")
         return self
 
-    def sample(self, rngs: list[np.random.Generator], channels: int) -> "NoiseBatch":
+    def sample(self, rngs: list[np.random.Generator], channels: int) -> NoiseBatch:
         K = self.n_components
         lo, hi = (np.log(self.f_low), np.log(self.f_high)) if self.spacing == "log" else (self.f_low, self.f_high)
         freq = np.array([g.uniform(lo, hi, (channels, K)) for g in rngs])
@@ -56,7 +56,7 @@ class BandLimitedUniform(BaseModel):
         return NoiseBatch(2 * np.pi * freq, phase, rms * np.sqrt(2.0 / K), self.bound)
 
 
-Noise = Annotated[Union[NoNoise, BandLimitedUniform], Field(discriminator="kind")]
+Noise = Annotated[NoNoise | BandLimitedUniform, Field(discriminator="kind")]
 
 
 class NoiseBatch:
@@ -69,5 +69,5 @@ class NoiseBatch:
         n = self.amplitude * np.sin(self.omega * t + self.phase).sum(axis=-1)
         return np.clip(n, -self.bound, self.bound)
 
-    def take(self, index: np.ndarray) -> "NoiseBatch":
+    def take(self, index: np.ndarray) -> NoiseBatch:
         return NoiseBatch(self.omega[index], self.phase[index], self.amplitude, self.bound)

@@ -8,8 +8,9 @@ lag). Stiff observer gains are handled by a step check (see :func:`check_step`):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
