@@ -75,6 +75,10 @@ class FigureSpec(BaseModel):
     variants: list[str] | None = Field(None, description="default: all variants")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
     t_range: tuple[float, float] | None = None
+    ylim_after: float | None = Field(
+        None, ge=0, description="scale the y axes to the data after this time [s] so the initial peaking does not "
+        "hide the steady state (default: the first metric's t_start)",
+    )
 
 
 class EngineOptions(BaseModel):
@@ -101,6 +105,11 @@ class Experiment(BaseModel):
     figures: list[FigureSpec] = Field(default_factory=list)
     engine: EngineOptions = Field(default_factory=EngineOptions)
     assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
+    profiles: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="named lists of dotted.key=value overrides, selected with `run --profile NAME` "
+        "(e.g. a quick profile for CI)",
+    )
 
     @model_validator(mode="after")
     def _cross_references(self) -> Experiment:
@@ -216,9 +225,14 @@ def apply_set(doc: dict, assignment: str) -> None:
             node = node[idx]
 
 
-def resolve_document(path: Path, sets: list[str] = ()) -> tuple[dict, dict[str, Path]]:
-    """Read an experiment file, inline its scenario, apply ``--set``; returns (document, origins)."""
+def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None) -> tuple[dict, dict[str, Path]]:
+    """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins)."""
     doc = _read_yaml(path)
+    if profile is not None:
+        profiles = doc.get("profiles") or {}
+        if profile not in profiles:
+            raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
+        sets = list(profiles[profile]) + list(sets)
     origins = {"": path}
     doc.setdefault("name", path.stem)
     scen = doc.get("scenario")
@@ -260,10 +274,10 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
     return ConfigError(file, key or "(top level)", msg + (f" (and {more} more)" if more else ""))
 
 
-def load_experiment(path: str | Path, sets: list[str] = ()) -> tuple[Experiment, dict]:
+def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
     """Load and validate an experiment config; raises ConfigError naming the file and key."""
     path = Path(path)
-    doc, origins = resolve_document(path, sets)
+    doc, origins = resolve_document(path, sets, profile)
     try:
         exp = Experiment.model_validate(doc)
     except ValidationError as exc:

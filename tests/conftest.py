@@ -10,12 +10,11 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture
-def tiny_config(tmp_path: Path) -> Path:
-    """A 4-s noisy experiment with two variants and two seeds (runs in about a second)."""
+def write_tiny(directory: Path, horizon: float = 4.0) -> Path:
+    """A short noisy experiment with two variants, two seeds, a table and two figures."""
     doc = {
         "description": "tiny",
-        "scenario": {"from": str(ROOT / "scenarios" / "cs2_noisy.yaml"), "horizon": 4.0, "dt": 0.01},
+        "scenario": {"from": str(ROOT / "scenarios" / "cs2_noisy.yaml"), "horizon": horizon, "dt": 0.01},
         "seeds": 2,
         "variants": [
             {"name": "liu_eps0.2", "observer": {"kind": "liu_eso", "eps": 0.2}},
@@ -24,8 +23,14 @@ def tiny_config(tmp_path: Path) -> Path:
         "metrics": [{"kind": "std", "t_start": 1.0}],
         "table": {"title": "tiny", "metric": "std", "signals": ["u", "sigma_u"],
                   "paper": {"source": "nobody", "values": {"liu_eps0.2": {"u": 0.09}}}},
-        "figures": [{"file": "u.png", "signals": ["u"]}],
+        "figures": [{"file": "u.png", "signals": ["u"]}, {"file": "sv.png", "signals": ["sigma_v"]}],
     }
-    path = tmp_path / "tiny.yaml"
+    path = directory / "tiny.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
+
+
+@pytest.fixture
+def tiny_config(tmp_path: Path) -> Path:
+    """A 4-s noisy experiment (runs in about a second)."""
+    return write_tiny(tmp_path)

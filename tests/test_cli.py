@@ -26,7 +26,7 @@ def test_run_writes_every_output(tiny_config, tmp_path):
     assert len(m) == 2 * 2 * 6  # variants x seeds x signals
     man = json.loads((d / "manifest.json").read_text())
     assert man["seed"] == 2024 and man["versions"]["numpy"] and man["git_revision"] and man["assumptions"]
-    assert (d / "figures" / "u.png").stat().st_size > 1000
+    assert (d / "figures" / "u.png").stat().st_size > 1000 and (d / "figures" / "sv.png").exists()
     table = (d / "table.md").read_text()
     assert "e_u paper" in table and "0.09" in table and "not computed" in table
     resolved = yaml.safe_load((d / "config.resolved.yaml").read_text())

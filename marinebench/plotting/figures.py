@@ -27,21 +27,35 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
     if spec.t_range is not None:
         mask = (t >= spec.t_range[0]) & (t <= spec.t_range[1])
     ref = int(np.flatnonzero(run_seed == 0)[0])
+    after = spec.ylim_after if spec.ylim_after is not None else exp.metrics[0].t_start
+    late = (t >= after) if spec.t_range is None else (t >= after) & mask
+
+    def autoscale(ax, series):
+        data = np.concatenate([x[late] for x in series])
+        data = data[np.isfinite(data)]
+        if data.size:
+            lo, hi = data.min(), data.max()
+            pad = 0.1 * (hi - lo) or 1e-12
+            ax.set_ylim(lo - pad, hi + pad)
+
     for i, sig in enumerate(spec.signals):
         ax = axes[i * (2 if spec.error else 1)]
         ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
-        for name in names:
-            b = int(np.flatnonzero((run_variant == index[name]) & (run_seed == 0))[0])
+        runs = [int(np.flatnonzero((run_variant == index[name]) & (run_seed == 0))[0]) for name in names]
+        for name, b in zip(names, runs):
             ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=labels[name])
             if spec.error:
                 axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=labels[name])
+        autoscale(ax, [truth[sig][:, ref]] + [est[sig][:, b] for b in runs])
+        if spec.error:
+            autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs])
         ax.set_ylabel(f"{NAMES[sig]} [{UNITS[sig]}]")
         ax.legend(loc="upper right", fontsize=7)
         if spec.error:
             axes[i * 2 + 1].set_ylabel(f"error [{UNITS[sig]}]")
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle(spec.title or spec.file, fontsize=10)
+    fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

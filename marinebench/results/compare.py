@@ -1,0 +1,195 @@
+"""Paired comparison of result directories: the CI gate for observer variants.
+
+Cells are (experiment, scenario, variant, signal, metric), paired on seed. For each cell: baseline and
+candidate means over their common seeds, the relative change, a paired bootstrap 95% CI of the mean
+change, and a verdict:
+
+- ``same``: |change| <= atol + rtol * |baseline| (or the CI contains zero);
+- ``worse`` / ``better``: outside the tolerance *and* the CI excludes zero (with a single seed, the
+  tolerance alone decides); direction from :data:`HIGHER_IS_BETTER` (lower is better by default);
+- ``missing``: in the baseline only; ``new``: in the candidate only.
+
+A run that diverged in the candidate but not in the baseline is ``worse``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from marinebench.errors import MarinebenchError
+
+HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
+KEYS = ["experiment", "scenario", "variant", "signal", "metric"]
+SEVERITY = {"worse": 0, "missing": 1, "new": 2, "better": 3, "same": 4}
+
+
+class CompareInputError(MarinebenchError):
+    """Unusable comparison input (missing files, mismatched configs)."""
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    rtol: float = 0.02
+    atol: float = 0.0
+    level: float = 0.95
+    n_boot: int = 2000
+
+
+def find_results(root: Path) -> dict[str, Path]:
+    """Experiment name -> result directory, for a single result directory or a tree of them."""
+    root = Path(root)
+    if not root.exists():
+        raise CompareInputError(f"{root}: no such directory")
+    found: dict[str, Path] = {}
+    for csv in sorted(root.rglob("metrics.csv")):
+        d = csv.parent
+        if any(part.startswith(".") for part in d.relative_to(root).parts):
+            continue  # temporary directories of an interrupted write
+        name = pd.read_csv(csv, usecols=["experiment"], nrows=1)["experiment"].iloc[0]
+        if name in found:
+            raise CompareInputError(f"{root}: experiment '{name}' appears twice ({found[name]} and {d})")
+        found[name] = d
+    if not found:
+        raise CompareInputError(f"{root}: no metrics.csv found")
+    return found
+
+
+def load_metrics(dirs: dict[str, Path], metrics: list[str] | None = None) -> pd.DataFrame:
+    frames = [pd.read_csv(d / "metrics.csv") for d in dirs.values()]
+    df = pd.concat(frames, ignore_index=True)
+    if "status" not in df:
+        df["status"] = "ok"
+    if metrics:
+        df = df[df["metric"].isin(metrics)]
+    return df
+
+
+def _world(d: Path) -> dict:
+    """The parts of a resolved config that must agree for a comparison to be paired."""
+    path = d / "config.resolved.yaml"
+    if not path.exists():
+        return {}
+    doc = yaml.safe_load(path.read_text())
+    return {"scenario": doc.get("scenario"), "seed": doc.get("seed"), "metrics": doc.get("metrics")}
+
+
+def _diff_keys(a, b, prefix: str = "") -> list[str]:
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b)):
+            out += _diff_keys(a.get(k), b.get(k), f"{prefix}.{k}" if prefix else str(k))
+        return out
+    return [] if a == b else [prefix]
+
+
+def check_compatible(base: dict[str, Path], cand: dict[str, Path]) -> None:
+    for name in sorted(set(base) & set(cand)):
+        diff = _diff_keys(_world(base[name]), _world(cand[name]))
+        if diff:
+            raise CompareInputError(
+                f"mismatched configs for experiment '{name}' ({base[name]} vs {cand[name]}): "
+                + ", ".join(diff[:5]) + (" ..." if len(diff) > 5 else "")
+            )
+
+
+def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of the mean of paired differences (resampling seeds)."""
+    diff = np.asarray(diff, dtype=float)
+    if diff.size < 2:
+        return float("nan"), float("nan")
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, diff.size, size=(n_boot, diff.size))
+    means = diff[idx].mean(axis=1)
+    alpha = (1 - level) / 2
+    return float(np.quantile(means, alpha)), float(np.quantile(means, 1 - alpha))
+
+
+def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS) -> pd.DataFrame:
+    """One row per cell with baseline, candidate, change, CI and verdict, sorted by severity."""
+    rows = []
+    bg = dict(list(base.groupby(keys, sort=True)))
+    cg = dict(list(cand.groupby(keys, sort=True)))
+    for cell in sorted(set(bg) | set(cg)):
+        row = dict(zip(keys, cell))
+        if cell not in cg or cell not in bg:
+            g = bg.get(cell, cg.get(cell))
+            ok = g[g["status"] == "ok"]["value"]
+            row.update(baseline=ok.mean() if cell in bg else np.nan, candidate=ok.mean() if cell in cg else np.nan,
+                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, n=0,
+                       verdict="missing" if cell in bg else "new")
+            rows.append(row)
+            continue
+        b = bg[cell].set_index("seed")
+        c = cg[cell].set_index("seed")
+        seeds = b.index.intersection(c.index)
+        b, c = b.loc[seeds], c.loc[seeds]
+        b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
+        newly_diverged = bool((b_ok & ~c_ok).any())
+        both = b_ok & c_ok
+        d = (c["value"] - b["value"])[both].to_numpy()
+        bm, cm = float(b["value"][both].mean()), float(c["value"][both].mean())
+        change = cm - bm
+        lo, hi = paired_bootstrap_ci(d, tol.level, tol.n_boot)
+        sign = -1.0 if row["metric"] in HIGHER_IS_BETTER else 1.0
+        within = abs(change) <= tol.atol + tol.rtol * abs(bm)
+        significant = d.size < 2 or not (lo <= 0.0 <= hi)
+        if newly_diverged:
+            verdict = "worse"
+        elif within or not significant or np.isnan(change):
+            verdict = "same"
+        else:
+            verdict = "worse" if sign * change > 0 else "better"
+        row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
+                   ci_low=lo, ci_high=hi, n=int(both.sum()), verdict=verdict)
+        rows.append(row)
+    out = pd.DataFrame(rows, columns=keys + ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "verdict"])
+    out["_sev"] = out["verdict"].map(SEVERITY)
+    out["_mag"] = -out["rel_change"].abs().fillna(0)
+    return out.sort_values(["_sev", "_mag"] + keys).drop(columns=["_sev", "_mag"]).reset_index(drop=True)
+
+
+def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
+    bdirs, cdirs = find_results(baseline), find_results(candidate)
+    check_compatible(bdirs, cdirs)
+    return compare_frames(load_metrics(bdirs, metrics), load_metrics(cdirs, metrics), tol)
+
+
+def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
+    """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed."""
+    df = load_metrics(find_results(results), metrics)
+    for v in (a, b):
+        if v not in set(df["variant"]):
+            raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df['variant'])))})")
+    keys = ["experiment", "scenario", "signal", "metric"]
+    out = compare_frames(df[df["variant"] == a], df[df["variant"] == b], tol, keys)
+    out.insert(2, "variant", f"{b} vs {a}")
+    return out
+
+
+def headline(table: pd.DataFrame) -> str:
+    counts = table["verdict"].value_counts()
+    parts = [f"{counts.get(v, 0)} {v}" for v in ("worse", "better", "same")]
+    parts += [f"{counts[v]} {v}" for v in ("missing", "new") if counts.get(v, 0)]
+    return ", ".join(parts)
+
+
+def _fmt(x) -> str:
+    return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.4g}"
+
+
+def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
+    lines = [f"### {title}: {headline(table)}", ""]
+    lines.append("| verdict | experiment | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|")
+    icons = {"worse": "❌ worse", "better": "✅ better", "same": "same", "missing": "⚠️ missing", "new": "new"}
+    for r in table.itertuples(index=False):
+        rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
+        ci = "–" if np.isnan(r.ci_low) else f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
+        lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.variant} | {r.signal} | {r.metric} | "
+                     f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
+    return "\n".join(lines) + "\n"

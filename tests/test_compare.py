@@ -1,0 +1,150 @@
+"""compare: planted regressions caught, noise within tolerance not, missing cells, exit codes, CIs."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.results.compare import Tolerance, compare_frames, paired_bootstrap_ci
+
+runner = CliRunner()
+
+
+def write_result(root: Path, experiment: str, values: dict, seeds: int = 8, horizon: float = 10.0,
+                 status: dict | None = None) -> Path:
+    """A synthetic result directory: values[(variant, signal)] -> per-seed array."""
+    d = root / experiment
+    d.mkdir(parents=True)
+    rows = []
+    for (variant, signal), vals in values.items():
+        for s in range(seeds):
+            st = (status or {}).get((variant, signal, s), "ok")
+            rows.append((experiment, "scen", variant, s, signal, "std", np.nan if st != "ok" else vals[s], st))
+    pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"]) \
+        .to_csv(d / "metrics.csv", index=False)
+    (d / "config.resolved.yaml").write_text(yaml.safe_dump({"scenario": {"horizon": horizon}, "seed": 1, "metrics": []}))
+    return d
+
+
+@pytest.fixture
+def base_values():
+    rng = np.random.default_rng(0)
+    return {(v, s): 0.1 + 0.02 * rng.random(8) for v in ("a", "b") for s in ("u", "v")}
+
+
+def test_planted_regression_is_caught_and_listed_first(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = dict(base_values)
+    cand[("b", "v")] = base_values[("b", "v")] * 1.3  # planted: 30 % worse on every seed
+    rng = np.random.default_rng(1)
+    cand[("a", "u")] = base_values[("a", "u")] * (1 + 0.005 * rng.standard_normal(8))  # noise within tolerance
+    write_result(tmp_path / "cand", "exp", cand)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 1
+    lines = res.output.splitlines()
+    assert lines[0] == "### marinebench compare: 1 worse, 0 better, 3 same"
+    first = lines[4]
+    assert "worse" in first and "| b | v |" in first
+
+
+def test_identical_results_are_all_same(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "cand", "exp", base_values)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--format", "json"])
+    assert res.exit_code == 0
+    doc = json.loads(res.output)
+    assert doc["summary"] == "0 worse, 0 better, 4 same"
+    assert {c["verdict"] for c in doc["cells"]} == {"same"}
+
+
+def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = {k: v for k, v in base_values.items() if k != ("a", "v")}
+    cand[("a", "u")] = base_values[("a", "u")] * 0.5
+    cand[("c", "u")] = base_values[("a", "u")]
+    write_result(tmp_path / "cand", "exp", cand)
+    out = tmp_path / "cmp.csv"
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--format", "csv",
+                              "--output", str(out)])
+    assert res.exit_code == 0, res.output  # nothing worse
+    table = pd.read_csv(out)
+    verdicts = dict(zip(zip(table["variant"], table["signal"]), table["verdict"]))
+    assert verdicts[("a", "u")] == "better" and verdicts[("a", "v")] == "missing" and verdicts[("c", "u")] == "new"
+    assert list(table["verdict"])[:2] == ["missing", "new"]
+
+
+def test_newly_diverged_run_is_worse(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 1 and "1 worse" in res.output
+
+
+def test_unusable_inputs_exit_2(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "other", "exp", base_values, horizon=20.0)
+    (tmp_path / "empty").mkdir()
+    cases = [
+        ([str(tmp_path / "base"), str(tmp_path / "nope")], "no such directory"),
+        ([str(tmp_path / "base"), str(tmp_path / "empty")], "no metrics.csv found"),
+        ([str(tmp_path / "base"), str(tmp_path / "other")], "mismatched configs for experiment 'exp'"),
+        ([str(tmp_path / "base"), "--variants", "a", "zz"], "no variant 'zz'"),
+        ([str(tmp_path / "base")], "missing CANDIDATE"),
+    ]
+    for args, message in cases:
+        res = runner.invoke(app, ["compare", *args])
+        assert res.exit_code == 2 and message in res.output, (args, res.output)
+        assert len(res.output.strip().splitlines()) == 1
+
+
+def test_tree_with_duplicate_experiment_is_unusable(tmp_path, base_values):
+    write_result(tmp_path / "tree" / "x", "exp", base_values)
+    write_result(tmp_path / "tree" / "y", "exp", base_values)
+    res = runner.invoke(app, ["compare", str(tmp_path / "tree"), str(tmp_path / "tree")])
+    assert res.exit_code == 2 and "appears twice" in res.output
+
+
+def test_variant_comparison_inside_one_run(tmp_path, base_values):
+    vals = dict(base_values)
+    vals[("b", "u")] = base_values[("a", "u")] * 1.5
+    vals[("b", "v")] = base_values[("a", "v")]
+    write_result(tmp_path, "exp", vals)
+    res = runner.invoke(app, ["compare", str(tmp_path / "exp"), "--variants", "a", "b"])
+    assert res.exit_code == 1
+    assert "| b vs a | u | std |" in res.output and "1 worse, 0 better, 1 same" in res.output
+
+
+def test_bootstrap_ci_coverage_on_synthetic_data():
+    rng = np.random.default_rng(3)
+    hits = 0
+    for _ in range(400):
+        d = rng.normal(0.5, 1.0, 20)
+        lo, hi = paired_bootstrap_ci(d, n_boot=1000, seed=int(rng.integers(1 << 30)))
+        hits += lo <= 0.5 <= hi
+    assert 0.9 <= hits / 400 <= 0.98  # percentile bootstrap is slightly liberal at n = 20
+
+
+def test_tolerance_decides_with_one_seed():
+    base = pd.DataFrame({"experiment": "e", "scenario": "s", "variant": "a", "seed": [0], "signal": "u",
+                         "metric": "std", "value": [1.0], "status": "ok"})
+    small = base.assign(value=[1.01])
+    big = base.assign(value=[1.5])
+    assert compare_frames(base, small, Tolerance(rtol=0.02))["verdict"][0] == "same"
+    assert compare_frames(base, big, Tolerance(rtol=0.02))["verdict"][0] == "worse"
+
+
+def test_real_run_compared_with_itself_rerun(tiny_config, tmp_path):
+    """A fresh run with the same config and seeds is 'same' everywhere; a worse tuning is caught."""
+    for name, sets in (("a", []), ("b", []), ("c", ["--set", "variants[proposed_d1.2].observer.delta_p1=6"])):
+        assert runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / name), "--quiet", *sets]).exit_code == 0
+    res = runner.invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "b")])
+    assert res.exit_code == 0 and "0 worse, 0 better, 12 same" in res.output
+    res = runner.invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "c")])
+    assert res.exit_code == 1 and "proposed_d1.2" in res.output.splitlines()[4]
+    shutil.rmtree(tmp_path / "c")
