@@ -50,7 +50,7 @@ def test_planted_regression_is_caught_and_listed_first(tmp_path, base_values):
     lines = res.output.splitlines()
     assert lines[0] == "### marinebench compare: 1 worse, 0 better, 3 same"
     first = lines[4]
-    assert "worse" in first and "| b | v |" in first
+    assert "WORSE" in first and "| b | v |" in first
 
 
 def test_identical_results_are_all_same(tmp_path, base_values):

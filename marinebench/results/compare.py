@@ -186,7 +186,7 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
     lines = [f"### {title}: {headline(table)}", ""]
     lines.append("| verdict | experiment | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
     lines.append("|---|---|---|---|---|---|---|---|---|---|")
-    icons = {"worse": "❌ worse", "better": "✅ better", "same": "same", "missing": "⚠️ missing", "new": "new"}
+    icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
     for r in table.itertuples(index=False):
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
         ci = "–" if np.isnan(r.ci_low) else f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"

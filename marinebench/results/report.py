@@ -25,7 +25,8 @@ code { background: #f0f0f0; padding: 0 3px; }
 def _inline(text: str) -> str:
     out = html.escape(text)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
-    return re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
+    out = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", out)
+    return re.sub(r"\*([^*\s][^*]*)\*", r"<i>\1</i>", out)
 
 
 def markdown_to_html(md: str) -> str:
