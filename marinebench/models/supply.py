@@ -1,0 +1,74 @@
+"""MSS supply vessel for dynamic positioning, model (A) of ``shared/reference/models.md`` section 2b.
+
+Fossen, Sagatun & Sorensen (1996), MSS ``supply.m`` / PythonVehicleSimulator ``supply.py``: a 3-DOF
+linear low-frequency model given in the bis system. Model (A) is used because its M and D are fully
+published; model (B) (ShipX 6-DOF) needs the ``supply.mat`` data, which is not available here.
+
+Low-frequency dynamics with a bias load b (NED, force units), Torben et al. eq. (41):
+
+    eta_dot = R(psi) nu,   M nu_dot + D nu = tau + R(psi)^T b + tau_d
+
+``tau_d`` are body-frame disturbance events (e.g. the sway impulse). Dimensionalisation with
+``T_L = diag(1, 1, L)``: ``M = m T_L M'' T_L`` and ``D = m sqrt(g/L) T_L D'' T_L``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+M_BIS = ((1.1274, 0.0, 0.0), (0.0, 1.8902, -0.0744), (0.0, -0.0744, 0.1278))
+D_BIS = ((0.0358, 0.0, 0.0), (0.0, 0.1183, -0.0124), (0.0, -0.0041, 0.0308))
+
+
+class SupplyVesselParams(BaseModel):
+    """Linear DP model of the MSS supply vessel (bis matrices, length, mass)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["supply_dp_linear"] = "supply_dp_linear"
+    L: float = Field(76.2, gt=0, description="length between perpendiculars [m]")
+    m: float = Field(6.0e6, gt=0, description="mass [kg] (bis mass unit)")
+    g: float = Field(9.81, gt=0, description="gravity [m/s^2]")
+    M_bis: tuple[tuple[float, float, float], ...] = Field(M_BIS, description="M'' (bis)")
+    D_bis: tuple[tuple[float, float, float], ...] = Field(D_BIS, description="D'' (bis)")
+
+
+def dimensional_matrices(p: SupplyVesselParams) -> tuple[np.ndarray, np.ndarray]:
+    """(M, D) in SI units."""
+    T = np.diag([1.0, 1.0, p.L])
+    M = p.m * T @ np.array(p.M_bis) @ T
+    D = p.m * np.sqrt(p.g / p.L) * T @ np.array(p.D_bis) @ T
+    return M, D
+
+
+def bis_scale(p: SupplyVesselParams) -> np.ndarray:
+    """Denominators that make z = [eta, b, nu] dimensionless (Norrbin's bis system, models.md 2d)."""
+    L, m, g = p.L, p.m, p.g
+    return np.array([L, L, 1.0, m * g, m * g, m * g * L, np.sqrt(g * L), np.sqrt(g * L), np.sqrt(g / L)])
+
+
+@dataclass(frozen=True)
+class SupplyVessel:
+    """Batched low-frequency plant; state ``x = [eta(3), nu(3), b(3)]`` with shape ``(B, 9)``."""
+
+    params: SupplyVesselParams
+    M: np.ndarray = field(init=False)
+    D: np.ndarray = field(init=False)
+    Minv: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        M, D = dimensional_matrices(self.params)
+        object.__setattr__(self, "M", M)
+        object.__setattr__(self, "D", D)
+        object.__setattr__(self, "Minv", np.linalg.inv(M))
+
+    def derivative(self, x: np.ndarray, tau: np.ndarray, tau_d: np.ndarray, b_dot: np.ndarray) -> np.ndarray:
+        psi, nu, b = x[:, 2], x[:, 3:6], x[:, 6:9]
+        c, s = np.cos(psi), np.sin(psi)
+        eta_dot = np.stack([c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2]], axis=1)
+        b_body = np.stack([c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1], b[:, 2]], axis=1)
+        nu_dot = (tau + b_body + tau_d - nu @ self.D.T) @ self.Minv.T
+        return np.concatenate([eta_dot, nu_dot, b_dot], axis=1)

@@ -1,0 +1,134 @@
+"""Torben DP building blocks: supply vessel, bis units, JONSWAP, Gauss-Markov, notch, Kalman gains, FTO."""
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.signal import freqz
+
+from marinebench.design.kalman import C_DP, dp_system, gain_at, kalman_gains
+from marinebench.environment.waves import dnv_gamma, jonswap
+from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
+from marinebench.observers.fto import fto_jump, rk4_maps
+from marinebench.sensors.gauss_markov import gm_step, stationary_std
+from marinebench.sensors.notch import Biquad, tustin_notch
+
+VESSEL = SupplyVessel(SupplyVesselParams())
+Q1, R1 = np.diag([50.0, 50.0, 10.0]), np.diag([15.0, 15.0, 1.0])
+
+
+def test_supply_vessel_matrices_match_published_values():
+    np.testing.assert_allclose(VESSEL.M, [[6.7644e6, 0, 0], [0, 1.13412e7, -3.40157e7], [0, -3.40157e7, 4.45238e9]], rtol=1e-4)
+    np.testing.assert_allclose(VESSEL.D, [[7.7071e4, 0, 0], [0, 2.54679e5, -2.03416e6], [0, -6.72585e5, 3.85007e8]], rtol=1e-4)
+    tc = np.sort(-1 / np.linalg.eigvals(-np.linalg.solve(VESSEL.M, VESSEL.D)).real)
+    np.testing.assert_allclose(tc, [11.5, 44, 88], rtol=0.05)
+
+
+def test_bis_units():
+    s = bis_scale(SupplyVesselParams())
+    np.testing.assert_allclose(s[[0, 3, 5, 6, 8]], [76.2, 5.886e7, 4.485e9, 27.34, 0.3588], rtol=1e-3)
+
+
+def test_jonswap_hs_recovered():
+    w = np.linspace(0.05, 6.0, 20000)
+    for gamma in (1.0, 3.3, dnv_gamma(2.0, 6.3)):
+        m0 = np.trapezoid(jonswap(w, 2.0, 6.3, gamma), w)
+        assert abs(4 * np.sqrt(m0) - 2.0) < 0.03
+    assert abs(dnv_gamma(2.0, 6.3) - 1.87) < 0.01
+    assert abs(jonswap(np.array([2 * np.pi / 6.3]), 2.0, 6.3, 3.3)[0] - 0.779) < 0.01
+
+
+def test_gauss_markov_stationary_std():
+    rng = np.random.default_rng(0)
+    c, ts, sigma = 1 / 20.0, 1.0, 0.5  # short time constant so the test reaches stationarity quickly
+    v = np.zeros(4000)
+    for _ in range(600):
+        v = gm_step(v, sigma, c, ts, rng.standard_normal(v.shape))
+    assert abs(v.std() / stationary_std(sigma, c, ts) - 1) < 0.05
+    assert abs(stationary_std(1.0, 1 / 1100, 1.0) - 23.46) < 0.05
+
+
+def test_notch_gain():
+    b, a = tustin_notch(1.0, 0.5, 1.0)
+    _w, h = freqz(b, a, worN=np.array([0.1, 0.5, 1.0, 1.5]), fs=2 * np.pi)  # w in rad/s for dt = 1 s
+    gain = np.abs(h)
+    assert gain[2] < 1e-12  # zero at w0 thanks to pre-warping
+    assert gain[0] > 0.99 and 0.85 < gain[1] < 0.97 and 0.6 < gain[3] < 0.95
+    f = Biquad(b, a, (1, 1))
+    f.reset_to(np.array([[3.0]]))
+    assert abs(f(np.array([[3.0]]))[0, 0] - 3.0) < 1e-12  # DC gain 1, no start-up transient
+
+
+def test_kalman_l1_l2():
+    g1 = kalman_gains(VESSEL.M, VESSEL.D, Q1, R1)
+    g2 = kalman_gains(VESSEL.M, VESSEL.D, 1e7 * Q1, R1)
+    assert g1.riccati_residual < 1e-10 and g2.riccati_residual < 1e-10
+    assert -1.6 < g1.poles.real.min() and g1.poles.real.max() < -0.5
+    assert g2.poles.real.max() < g1.poles.real.min()  # L2 faster than L1 (the q2 inversion)
+    for psi in np.linspace(-np.pi, np.pi, 13):  # stable for every frozen heading
+        for g in (g1, g2):
+            assert np.linalg.eigvals(dp_system(VESSEL.M, VESSEL.D, psi) - gain_at(g, VESSEL.M, psi) @ C_DP).real.max() < 0
+
+
+def test_phi_propagation_matches_expm_for_frozen_heading():
+    g1 = kalman_gains(VESSEL.M, VESSEL.D, Q1, R1)
+    A1 = dp_system(VESSEL.M, VESSEL.D, 0.4) - gain_at(g1, VESSEL.M, 0.4) @ C_DP
+    P, _ = rk4_maps(A1[None], 0.05)
+    phi = np.linalg.matrix_power(P[0], 50)
+    s = bis_scale(SupplyVesselParams())
+    scaled = lambda m: m * s[None, :] / s[:, None]
+    np.testing.assert_allclose(scaled(phi), scaled(expm(A1 * 2.5)), atol=1e-5)  # RK4 at dt = 0.05 s
+
+
+def test_fto_recovers_true_state_of_noiseless_lti_after_one_window():
+    """Exact continuous-time flows over one window: Psi [z1; z2] equals the true z(t_k + delta)."""
+    g1 = kalman_gains(VESSEL.M, VESSEL.D, Q1, R1)
+    g2 = kalman_gains(VESSEL.M, VESSEL.D, 1e3 * Q1, R1)
+    A = dp_system(VESSEL.M, VESSEL.D, 0.3)
+    L1, L2 = gain_at(g1, VESSEL.M, 0.3), gain_at(g2, VESSEL.M, 0.3)
+    # augmented LTI system [z, z1, z2] (u = 0, b constant): z_i' = (A - L_i C) z_i + L_i C z
+    Z = np.zeros((9, 9))
+    big = np.block([[A, Z, Z], [L1 @ C_DP, A - L1 @ C_DP, Z], [L2 @ C_DP, Z, A - L2 @ C_DP]])
+    z0 = np.array([3.0, -2.0, 0.1, 2e5, -1e5, 3e6, 0.2, -0.1, 0.01])
+    zhat0 = np.zeros(9)
+    delta = 2.5
+    out = expm(big * delta) @ np.concatenate([z0, zhat0, zhat0])
+    z, z1, z2 = out[:9], out[9:18], out[18:]
+    phi1, phi2 = expm((A - L1 @ C_DP) * delta), expm((A - L2 @ C_DP) * delta)
+    s = bis_scale(SupplyVesselParams())
+    zp, jumped, _cond = fto_jump(z1[None], z2[None], phi1[None], phi2[None], np.array([[1.0, 1.0, 1.0]]),
+                                np.array([1.0]), np.array([[0.5, 0.5, 0.05]]), 1e10, s)
+    assert jumped[0]
+    np.testing.assert_allclose(zp[0] / s, z / s, atol=1e-7)
+
+
+def test_jump_rule_and_condition_check():
+    n = 9
+    rng = np.random.default_rng(2)
+    phi1 = np.eye(n)[None] * 0.5
+    phi2 = np.eye(n)[None] * 0.1
+    z1, z2 = rng.normal(size=(1, n)), rng.normal(size=(1, n))
+    ones, k = np.ones(n), np.array([0.7])
+    small = np.array([[0.1, 0.1, 0.01]])
+    eps = np.array([[0.5, 0.5, 0.05]])
+    zp, jumped, _ = fto_jump(z1, z2, phi1, phi2, small, k, eps, 1e10, ones)
+    assert not jumped[0] and np.array_equal(zp, z1)  # no output error above the bounds: no jump
+    big = np.array([[0.1, 0.6, 0.0]])
+    zp, jumped, cond = fto_jump(z1, z2, phi1, phi2, big, k, eps, 1e10, ones)
+    z_star = (z2 - 0.2 * z1) / 0.8  # X = I - 0.2 I
+    assert jumped[0] and np.allclose(zp, 0.7 * z_star + 0.3 * z1) and np.isclose(cond[0], 1.0)
+    phi2_bad = phi2.copy()
+    phi2_bad[0, 0, 0] = 0.5 * (1 - 1e-13)  # Y[0, 0] ~ 1: X nearly singular
+    _, jumped, cond = fto_jump(z1, z2, phi1, phi2_bad, big, k, eps, 1e10, ones)
+    assert cond[0] > 1e10 and not jumped[0]
+    _, jumped_unchecked, _ = fto_jump(z1, z2, phi1, phi2_bad, big, k, eps, 1e10, ones, check=False)
+    assert jumped_unchecked[0]
+
+
+@pytest.mark.parametrize("dt", [0.05, 0.01])
+def test_rk4_maps_match_taylor(dt):
+    A = np.array([[[-1.0, 2.0], [0.0, -3.0]]])
+    P, H = rk4_maps(A, dt)
+    X = A[0] * dt
+    I2 = np.eye(2)
+    np.testing.assert_allclose(P[0], I2 + X + X @ X / 2 + X @ X @ X / 6 + X @ X @ X @ X / 24, rtol=1e-14)
+    np.testing.assert_allclose(H[0], dt * (I2 + X / 2 + X @ X / 6 + X @ X @ X / 24), rtol=1e-14)
