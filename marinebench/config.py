@@ -14,15 +14,30 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
 
+from marinebench.dp_scenario import DpScenario
 from marinebench.errors import ConfigError
 from marinebench.observers.bejarano import BejaranoTuning
+from marinebench.observers.dp import NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
 from marinebench.scenario import Scenario
 
-ObserverTuning = Annotated[BejaranoTuning | LiuEsoTuning, Field(discriminator="kind")]
+ObserverTuning = Annotated[
+    BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning, Field(discriminator="kind")
+]
+
+
+def _scenario_kind(v) -> str:
+    return v.get("kind", "open_loop_asv") if isinstance(v, dict) else getattr(v, "kind", "open_loop_asv")
+
+
+AnyScenario = Annotated[
+    Annotated[Scenario, Tag("open_loop_asv")] | Annotated[DpScenario, Tag("dp_supply")],
+    Discriminator(_scenario_kind),
+]
 NAME = r"^[A-Za-z0-9_.+-]+$"
+DIAGNOSTICS = ("n_resets", "n_jumps", "log10_cond_mean", "cond_max")  # per-run observer diagnostics (DP observers)
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
 
 
@@ -31,6 +46,10 @@ class Variant(BaseModel):
     name: str = Field(..., pattern=NAME, description="variant name used in tables and metrics.csv")
     label: str | None = Field(None, description="legend label (default: the name)")
     observer: ObserverTuning
+    world: dict[str, float] = Field(
+        default_factory=dict, description="per-run world parameters (e.g. gnss_sigma for dp_supply scenarios)"
+    )
+    tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
 
 
 class ErrorMetric(BaseModel):
@@ -38,7 +57,8 @@ class ErrorMetric(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["std", "rmse", "max_abs"] = "std"
-    signals: list[Literal["u", "v", "r", "sigma_u", "sigma_v", "sigma_r"]] = Field(default_factory=lambda: list(SIGNALS))
+    name: str | None = Field(None, pattern=NAME, description="metric name in metrics.csv (default: the kind)")
+    signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
     t_start: float = Field(
         5.0,
         ge=0,
@@ -46,6 +66,36 @@ class ErrorMetric(BaseModel):
         "(eta(0) = [0, 10, 0] vs eta_hat(0) = 0), which the papers' 'steady-state' figures do not contain",
     )
     t_end: float | None = Field(None, gt=0, description="end of the window [s] (default: the horizon)")
+
+
+    @property
+    def label(self) -> str:
+        return self.name or self.kind
+
+
+class JTotMetric(BaseModel):
+    """Torben eq. (50): J = integral of ||S^-1 (z - z_hat)|| dt over the window, S the bis units, heading
+    error wrapped; signal name ``z``."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["j_tot"] = "j_tot"
+    name: str = Field("J_tot", pattern=NAME)
+    t_start: float = Field(0.0, ge=0, description="window start [s]")
+    t_end: float | None = Field(None, gt=0, description="window end [s] (default: the horizon)")
+    from_fraction: float | None = Field(
+        None, ge=0, lt=1, description="start the window at this fraction of the horizon (overrides t_start)"
+    )
+
+    @property
+    def label(self) -> str:
+        return self.name
+
+    def window(self, horizon: float) -> tuple[float, float]:
+        start = self.from_fraction * horizon if self.from_fraction is not None else self.t_start
+        return start, self.t_end if self.t_end is not None else horizon
+
+
+Metric = Annotated[ErrorMetric | JTotMetric, Field(discriminator="kind")]
 
 
 class PaperValues(BaseModel):
@@ -59,7 +109,8 @@ class PaperValues(BaseModel):
 class TableSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     title: str
-    metric: Literal["std", "rmse", "max_abs"] = "std"
+    metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
+    metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
     signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
     paper: PaperValues | None = None
 
@@ -71,7 +122,7 @@ class FigureSpec(BaseModel):
     kind: Literal["timeseries"] = "timeseries"
     file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
     title: str = ""
-    signals: list[Literal["u", "v", "r", "sigma_u", "sigma_v", "sigma_r"]]
+    signals: list[str]
     variants: list[str] | None = Field(None, description="default: all variants")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
     t_range: tuple[float, float] | None = None
@@ -96,11 +147,11 @@ class Experiment(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(..., pattern=NAME)
     description: str = ""
-    scenario: Scenario
+    scenario: AnyScenario
     seed: int = Field(2024, ge=0, description="root seed; run seeds derive from (seed, seed index)")
     seeds: int = Field(5, ge=1, le=10000, description="Monte-Carlo runs per variant")
     variants: list[Variant] = Field(..., min_length=1)
-    metrics: list[ErrorMetric] = Field(default_factory=lambda: [ErrorMetric()])
+    metrics: list[Metric] = Field(default_factory=lambda: [ErrorMetric()])
     table: TableSpec | None = None
     figures: list[FigureSpec] = Field(default_factory=list)
     engine: EngineOptions = Field(default_factory=EngineOptions)
@@ -117,15 +168,17 @@ class Experiment(BaseModel):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"duplicate variant names: {sorted(dup)}")
-        kinds = [m.kind for m in self.metrics]
+        kinds = [m.label for m in self.metrics]
         if len(set(kinds)) != len(kinds):
-            raise ValueError("each metric kind may appear once")
+            raise ValueError(f"metric names must be unique: {kinds}")
         for m in self.metrics:
-            if m.t_start >= (m.t_end or self.scenario.horizon):
-                raise ValueError(f"metric window starts at {m.t_start} s, after its end")
+            start, end = m.window(self.scenario.horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or self.scenario.horizon)
+            if start >= end:
+                raise ValueError(f"metric '{m.label}' window starts at {start} s, after its end {end} s")
         if self.table is not None:
-            if self.table.metric not in kinds:
-                raise ValueError(f"table.metric '{self.table.metric}' is not among metrics {kinds}")
+            for name in self.table.metrics or [self.table.metric]:
+                if name not in kinds and name not in DIAGNOSTICS:
+                    raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
             if self.table.paper is not None:
                 unknown = set(self.table.paper.values) - set(names)
                 if unknown:
@@ -256,7 +309,9 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
-    return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in {"bejarano", "liu_eso", "random_sinusoid", "constant", "none", "bandlimited_uniform"}))
+    tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
+            "open_loop_asv", "dp_supply", "impulse", "slow", "std", "rmse", "max_abs", "j_tot"}
+    return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 
 def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -> ConfigError:
@@ -289,17 +344,27 @@ def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key."""
     from marinebench.errors import DesignError, StiffnessError
-    from marinebench.experiments.runner import OBSERVERS
-    from marinebench.models.cybership2 import CyberShip2
+    from marinebench.experiments.runner import make_observer, plant_of, signals_of
     from marinebench.sim.engine import ObserverGroup, check_step
 
-    Minv = CyberShip2(exp.scenario.vessel).Minv
+    plant = plant_of(exp.scenario)
     groups = []
+    allowed = getattr(exp.scenario, "PER_RUN", ())
     for i, v in enumerate(exp.variants):
+        unknown = set(v.world) - set(allowed)
+        if unknown:
+            raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+        if v.observer.kind not in signals_of(exp.scenario):
+            raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to a {exp.scenario.kind} scenario")
         try:
-            groups.append(ObserverGroup(OBSERVERS[v.observer.kind]([v.observer], Minv), [0]))
+            groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))
         except DesignError as exc:
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+    for j, m in enumerate(exp.metrics):
+        if m.kind != "j_tot":
+            bad = set(m.signals) - set(groups[0].observer.signals)
+            if bad:
+                raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
     if exp.engine.check_step:
         try:
             check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
@@ -307,11 +372,14 @@ def preflight(exp: Experiment, file: Path) -> None:
             raise ConfigError(file, "scenario.dt", str(exc)) from None
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def load_scenario(path: str | Path):
+    """Validate a scenario file of any kind (``kind:`` picks the model; default open_loop_asv)."""
+    from pydantic import TypeAdapter
+
     path = Path(path)
     doc = _read_yaml(path)
     try:
-        return Scenario.model_validate(doc)
+        return TypeAdapter(AnyScenario).validate_python(doc)
     except ValidationError as exc:
         raise validation_to_config_error(exc, {"": path}) from None
 

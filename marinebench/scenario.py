@@ -8,6 +8,7 @@ world does not depend on the batch size, on the other variants or on the order o
 from __future__ import annotations
 
 import zlib
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -51,6 +52,7 @@ class Scenario(BaseModel):
     """An open-loop ASV world (Bejarano et al. Sec. IV)."""
 
     model_config = ConfigDict(extra="forbid")
+    kind: Literal["open_loop_asv"] = "open_loop_asv"
     name: str = Field(..., min_length=1)
     description: str = ""
     vessel: CyberShip2Params = Field(default_factory=CyberShip2Params)

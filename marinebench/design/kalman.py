@@ -11,8 +11,9 @@ noise enters where the disturbance acts:
 M^-1 R^T(psi) K3]`` equals L0 at psi = 0. Units: Q in (m/s^2)^2/s for surge/sway and (rad/s^2)^2/s for
 yaw; R in m^2 and rad^2 (``shared/reference/baselines.md`` section 3.3).
 
-``bias_units = "force"`` designs on the force-unit model instead (the literal reading, which gives a
-hopelessly slow L1 for a 6e6 kg vessel).
+``bias_units = "force"`` (N), ``"kN"`` or ``"MN"`` design on the model with the bias in that force unit
+(``nu_dot = ... + unit M^-1 b_unit``). The paper does not state its units; the gain's speed depends on
+them by orders of magnitude (force: slowest pole ~6e-5 rad/s; kN: ~2e-3; acceleration: ~0.6).
 """
 
 from __future__ import annotations
@@ -54,20 +55,23 @@ def gain_at(g: DpGains, M: np.ndarray, psi: float = 0.0) -> np.ndarray:
     return np.vstack([g.K1, g.K2, np.linalg.solve(M, R.T @ g.K3)])
 
 
-def kalman_gains(
-    M: np.ndarray, D: np.ndarray, Q: np.ndarray, R: np.ndarray, bias_units: Literal["acceleration", "force"] = "acceleration"
-) -> DpGains:
+BiasUnits = Literal["acceleration", "force", "kN", "MN"]
+FORCE_UNIT = {"force": 1.0, "kN": 1e3, "MN": 1e6}
+
+
+def kalman_gains(M: np.ndarray, D: np.ndarray, Q: np.ndarray, R: np.ndarray, bias_units: BiasUnits = "acceleration") -> DpGains:
     Minv = np.linalg.inv(M)
     A = np.zeros((9, 9))
     A[0:3, 6:9] = np.eye(3)
     A[6:9, 6:9] = -Minv @ D
-    A[6:9, 3:6] = np.eye(3) if bias_units == "acceleration" else Minv
+    unit = FORCE_UNIT.get(bias_units, 1.0)
+    A[6:9, 3:6] = np.eye(3) if bias_units == "acceleration" else unit * Minv
     G = np.vstack([np.zeros((3, 3)), np.eye(3), np.zeros((3, 3))])
     P = solve_continuous_are(A.T, C_DP.T, G @ Q @ G.T, R)
     residual = A @ P + P @ A.T - P @ C_DP.T @ np.linalg.solve(R, C_DP @ P) + G @ Q @ G.T
     L0 = P @ C_DP.T @ np.linalg.inv(R)
     K1 = L0[0:3]
-    K2 = M @ L0[3:6] if bias_units == "acceleration" else L0[3:6]
+    K2 = M @ L0[3:6] if bias_units == "acceleration" else unit * L0[3:6]
     K3 = M @ L0[6:9]
     gains = DpGains(K1, K2, K3, float(np.abs(residual).max() / max(1.0, np.abs(P).max())), np.empty(0))
     poles = np.linalg.eigvals(dp_system(M, D) - gain_at(gains, M) @ C_DP)

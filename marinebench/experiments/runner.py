@@ -1,7 +1,8 @@
 """Run one experiment: variants x seeds in a single batch through the one engine.
 
 Run ``b = v * seeds + j`` is variant ``v`` with seed index ``j``; all variants share the world of seed
-``j`` (paired comparisons). Observers of the same kind run as one batched group with per-run gains.
+``j`` (paired comparisons) apart from the per-run world parameters a variant sets (``world:``).
+Observers of the same kind run as one batched group with per-run gains.
 """
 
 from __future__ import annotations
@@ -14,20 +15,57 @@ import numpy as np
 import pandas as pd
 
 from marinebench.config import Experiment
+from marinebench.dp_scenario import DpWorld
 from marinebench.metrics.stats import mean_ci
+from marinebench.models.cybership2 import CyberShip2
+from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
+from marinebench.observers.dp import SIGNALS as DP_SIGNALS
+from marinebench.observers.dp import DpObserver
 from marinebench.observers.liu_eso import LiuEsoObserver
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
-from marinebench.sim.recorders import ErrorMoments, Traces
+from marinebench.sim.recorders import ErrorMoments, NormIntegral, Traces
 
-OBSERVERS = {"bejarano": BejaranoObserver, "liu_eso": LiuEsoObserver}
+OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto")}
+
+
+def signals_of(scenario) -> tuple[str, ...]:
+    """Observer kinds that apply to a scenario kind."""
+    return OBSERVER_KINDS[scenario.kind]
+
+
+def plant_of(scenario):
+    return CyberShip2(scenario.vessel) if scenario.kind == "open_loop_asv" else SupplyVessel(scenario.vessel)
+
+
+def make_observer(kind: str, tunings: list, scenario, plant):
+    """Build one batched observer of ``kind`` with one tuning per run."""
+    if kind == "bejarano":
+        return BejaranoObserver(tunings, plant.Minv)
+    if kind == "liu_eso":
+        return LiuEsoObserver(tunings, plant.Minv)
+    if kind in ("npo", "resetting_fto"):
+        return DpObserver(tunings, plant, scenario.dt, bis_scale(scenario.vessel))
+    raise KeyError(kind)
+
+
+def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
+    sc = exp.scenario
+    if sc.kind == "open_loop_asv":
+        return OpenLoopASV(sc, exp.seed, run_seed)
+    per_run = {}
+    for key in sc.PER_RUN:
+        if any(key in v.world for v in exp.variants):
+            default = getattr(sc.sensors, key)
+            per_run[key] = np.array([exp.variants[v].world.get(key, default) for v in run_variant], dtype=float)
+    return DpWorld(sc, exp.seed, run_seed, per_run)
 
 
 @dataclass
 class RunResult:
     experiment: Experiment
-    metrics: pd.DataFrame  # tidy: experiment, scenario, variant, seed, signal, metric, value, status
+    metrics: pd.DataFrame  # tidy: experiment, scenario, variant, seed, signal, metric, value, status (+ tags)
     summary: pd.DataFrame  # variant, signal, metric, mean, ci_low, ci_high, n, n_diverged
     traces: tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]
     run_variant: np.ndarray
@@ -37,14 +75,14 @@ class RunResult:
     designs: dict[str, dict] = field(default_factory=dict)
 
 
-def build_groups(exp: Experiment, run_variant: np.ndarray, Minv: np.ndarray) -> list[ObserverGroup]:
+def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
     """One batched observer per observer kind, with one tuning per run."""
     groups = []
-    for kind, cls in OBSERVERS.items():
+    for kind in signals_of(exp.scenario):
         idx = np.array([b for b, v in enumerate(run_variant) if exp.variants[v].observer.kind == kind], dtype=int)
         if idx.size:
             tunings = [exp.variants[run_variant[b]].observer for b in idx]
-            groups.append(ObserverGroup(cls(tunings, Minv), idx))
+            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant), idx))
     return groups
 
 
@@ -54,8 +92,9 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
 
     out = {}
     for v in exp.variants:
-        if v.observer.kind == "bejarano":
-            rot, pos = bejarano.design(v.observer)
+        o = v.observer
+        if o.kind == "bejarano":
+            rot, pos = bejarano.design(o)
             out[v.name] = {
                 "L_psi": rot.gain[:, 0].tolist(),
                 "L_pz": pos.gain.tolist(),
@@ -65,44 +104,80 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
                 "slowest_pole_p": float(pos.poles.real.max()),
                 "fastest_pole_abs": float(max(np.abs(rot.poles).max(), np.abs(pos.poles).max())),
             }
-        else:
-            eps, k = v.observer.eps, v.observer.k
-            out[v.name] = {"gains": [k[0] / eps, k[1] / eps**2, k[2] / eps**3], "mode": v.observer.mode}
+        elif o.kind == "liu_eso":
+            out[v.name] = {"gains": [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3], "mode": o.mode}
+        elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)
+            obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
+            out[v.name] = {
+                "K1_L1": obs.K1[0, 0].tolist(), "K2_L1": obs.K2[0, 0].tolist(), "K3_L1": obs.K3[0, 0].tolist(),
+                "poles_L1_re": sorted(np.round(obs.poles[0].real, 4).tolist()),
+                "poles_L2_re": sorted(np.round(obs.poles[1].real, 4).tolist()),
+            }
     return out
 
 
-def run(exp: Experiment, progress: Callable[[int], None] | None = None, on_start: Callable[[int], None] | None = None) -> RunResult:
+def run(
+    exp: Experiment,
+    progress: Callable[[int], None] | None = None,
+    on_start: Callable[[int], None] | None = None,
+    traces: bool = True,
+) -> RunResult:
     """Design, check the step, simulate and reduce to tidy metrics."""
     V, S = len(exp.variants), exp.seeds
     run_variant = np.repeat(np.arange(V), S)
     run_seed = np.tile(np.arange(S), V)
     sc = exp.scenario
-    world = OpenLoopASV(sc, exp.seed, run_seed)
-    groups = build_groups(exp, run_variant, world.plant.Minv)
+    world = make_world(exp, run_variant, run_seed)
+    groups = build_groups(exp, run_variant, world.plant)
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
     n_steps = round(sc.horizon / sc.dt)
-    moments = [ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon) for m in exp.metrics]
+    recorders = []
+    for m in exp.metrics:
+        if m.kind == "j_tot":
+            start, end = m.window(sc.horizon)
+            recorders.append(NormIntegral(list(DP_SIGNALS), bis_scale(sc.vessel), {"psi"}, start, end, sc.dt))
+        else:
+            recorders.append(ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon))
     trace_signals = sorted({s for g in groups for s in g.observer.signals})
-    traces = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt))
+    tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
     if on_start is not None:
         on_start(n_steps)
     t0 = time.perf_counter()
-    diverged = simulate(world, groups, sc.dt, n_steps, moments + [traces], progress)
+    diverged = simulate(world, groups, sc.dt, n_steps, recorders + ([tracer] if tracer else []), progress)
     wall = time.perf_counter() - t0
 
+    per_metric: list[tuple[str, dict[str, np.ndarray]]] = []
+    for spec, rec in zip(exp.metrics, recorders):
+        if spec.kind == "j_tot":
+            per_metric.append((spec.label, {"z": rec.value}))
+        else:
+            per_metric.append((spec.label, rec.result(spec.kind)))
+    for g in groups:  # observer diagnostics (resets, condition numbers), signal "z"
+        diag = getattr(g.observer, "diagnostics", None)
+        if diag is not None:
+            for name, values in diag().items():
+                full = np.full(V * S, np.nan)
+                full[g.index] = values
+                per_metric.append((name, {"z": full}))
     rows = []
-    for spec, rec in zip(exp.metrics, moments):
-        values = rec.result(spec.kind)
+    tag_keys = sorted({k for v in exp.variants for k in v.tags})
+    for metric, values in per_metric:
         for signal, per_run in values.items():
             for b in range(V * S):
+                if not np.isfinite(per_run[b]) and metric not in [m.label for m in exp.metrics]:
+                    continue  # diagnostics absent for this run's observer kind
                 ok = not diverged[b] and np.isfinite(per_run[b])
+                variant = exp.variants[run_variant[b]]
                 rows.append(
-                    (exp.name, sc.name, exp.variants[run_variant[b]].name, int(run_seed[b]), signal, spec.kind,
-                     float(per_run[b]) if ok else float("nan"), "ok" if ok else "diverged")
+                    (exp.name, sc.name, variant.name, int(run_seed[b]), signal, metric,
+                     float(per_run[b]) if ok else float("nan"), "ok" if ok else "diverged",
+                     *[variant.tags.get(k, "") for k in tag_keys])
                 )
-    metrics = pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+    columns = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status", *tag_keys]
+    metrics = pd.DataFrame(rows, columns=columns)
     summary = summarise(metrics)
-    return RunResult(exp, metrics, summary, traces.arrays(), run_variant, run_seed, wall, rate, design_summary(exp))
+    arrays = tracer.arrays() if tracer else (np.zeros(0), {}, {})
+    return RunResult(exp, metrics, summary, arrays, run_variant, run_seed, wall, rate, design_summary(exp))
 
 
 def summarise(metrics: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:

@@ -12,8 +12,10 @@ import numpy as np
 
 from marinebench.config import Experiment, FigureSpec
 
-UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²"}
-NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r"}
+UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²",
+         "x": "m", "y": "m", "psi": "rad", "b_x": "N", "b_y": "N", "b_n": "N m"}
+NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r",
+         "x": "north x", "y": "east y", "psi": "heading ψ", "b_x": "bias b_N", "b_y": "bias b_E", "b_n": "bias b_ψ"}
 
 
 def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
@@ -49,10 +51,10 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
         autoscale(ax, [truth[sig][:, ref]] + [est[sig][:, b] for b in runs])
         if spec.error:
             autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs])
-        ax.set_ylabel(f"{NAMES[sig]} [{UNITS[sig]}]")
+        ax.set_ylabel(f"{NAMES.get(sig, sig)} [{UNITS.get(sig, '-')}]")
         ax.legend(loc="upper right", fontsize=7)
         if spec.error:
-            axes[i * 2 + 1].set_ylabel(f"error [{UNITS[sig]}]")
+            axes[i * 2 + 1].set_ylabel(f"error [{UNITS.get(sig, '-')}]")
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0)", fontsize=10)

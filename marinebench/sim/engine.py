@@ -1,9 +1,13 @@
 """Batched fixed-step engine: one Python loop over time, numpy over runs.
 
-The plant and every observer group are integrated jointly by classic RK4 with the same step, so the
-observers see the measurement at the RK4 stage times (continuous-time observers, no zero-order-hold
-lag). Stiff observer gains are handled by a step check (see :func:`check_step`): RK4 is accurate when
-``dt * |lambda|_max`` is well below its stability limit 2.78; the default limit is 0.5.
+The plant and every continuous observer group are integrated jointly by classic RK4 with the same
+step, so those observers see the measurement at the RK4 stage times (no zero-order-hold lag).
+*Discrete* observer groups (``observer.discrete = True``, e.g. the DP observers fed by sampled,
+held sensors) are advanced once per step by ``observer.step(state, y_k, tau_k, k)`` with the
+measurement at the start of the step. A world may have a ``begin_step(k, t, x)`` hook, called at the
+start of every step, to sample and filter its sensors. Stiff observer gains are handled by a step
+check (see :func:`check_step`): RK4 is accurate when ``dt * |lambda|_max`` is well below its stability
+limit 2.78; the default limit is 0.5.
 """
 
 from __future__ import annotations
@@ -67,11 +71,16 @@ def simulate(
     Recorders are updated at every step ``k = 0..n_steps`` with the truth and the gathered estimates.
     """
     B = world.x0.shape[0]
+    continuous = [g for g in groups if not getattr(g.observer, "discrete", False)]
+    discrete = [g for g in groups if getattr(g.observer, "discrete", False)]
+    groups = continuous + discrete
+    nc = len(continuous)
     state = [world.x0.copy()] + [g.observer.init() for g in groups]
+    begin_step = getattr(world, "begin_step", None)
 
     def rhs(t: float, s: list[np.ndarray]) -> list[np.ndarray]:
         x_dot, y, tau = world.derivative(t, s[0])
-        return [x_dot] + [g.observer.derivative(xh, y[g.index], tau[g.index]) for g, xh in zip(groups, s[1:])]
+        return [x_dot] + [g.observer.derivative(xh, y[g.index], tau[g.index]) for g, xh in zip(continuous, s[1:])]
 
     def axpy(a: float, ds: list[np.ndarray], s: list[np.ndarray]) -> list[np.ndarray]:
         return [si + a * di for si, di in zip(s, ds)]
@@ -81,6 +90,8 @@ def simulate(
     with np.errstate(all="ignore"):
         for k in range(n_steps + 1):
             t = k * dt
+            if begin_step is not None:
+                begin_step(k, t, state[0])
             for g, xh in zip(groups, state[1:]):
                 for name, value in g.observer.outputs(xh).items():
                     est[name][g.index] = value
@@ -89,11 +100,16 @@ def simulate(
                 rec.update(k, t, truth, est)
             if k == n_steps:
                 break
-            k1 = rhs(t, state)
-            k2 = rhs(t + dt / 2, axpy(dt / 2, k1, state))
-            k3 = rhs(t + dt / 2, axpy(dt / 2, k2, state))
-            k4 = rhs(t + dt, axpy(dt, k3, state))
-            state = [s + dt / 6 * (a + 2 * b + 2 * c + d) for s, a, b, c, d in zip(state, k1, k2, k3, k4)]
+            flow = state[: nc + 1]
+            k1 = rhs(t, flow)
+            k2 = rhs(t + dt / 2, axpy(dt / 2, k1, flow))
+            k3 = rhs(t + dt / 2, axpy(dt / 2, k2, flow))
+            k4 = rhs(t + dt, axpy(dt, k3, flow))
+            new = [s + dt / 6 * (a + 2 * b + 2 * c + d) for s, a, b, c, d in zip(flow, k1, k2, k3, k4)]
+            if discrete:
+                _, y, tau = world.derivative(t, state[0])
+                new += [g.observer.step(xh, y[g.index], tau[g.index], k) for g, xh in zip(discrete, state[nc + 1 :])]
+            state = new
             if progress is not None and (k + 1) % progress_every == 0:
                 progress(progress_every)
     diverged = ~np.isfinite(state[0]).all(axis=1)

@@ -81,3 +81,30 @@ class Traces:
             {s: np.asarray(v) for s, v in self.truth.items()},
             {s: np.asarray(v) for s, v in self.est.items() if v},
         )
+
+
+class NormIntegral:
+    """Streaming ``integral of ||S^-1 (est - truth)|| dt`` over ``[t_start, t_end)`` (Torben eq. (50)).
+
+    ``scale`` are the per-signal denominators S (bis units); signals in ``wrap`` are angles whose
+    error is wrapped to (-pi, pi]. Left Riemann sum at the engine step ``dt``.
+    """
+
+    def __init__(self, signals: list[str], scale: np.ndarray, wrap: set[str], t_start: float, t_end: float, dt: float):
+        self.signals, self.scale, self.wrap = list(signals), np.asarray(scale, dtype=float), wrap
+        self.t_start, self.t_end, self.dt = t_start, t_end, dt
+        self.value: np.ndarray | None = None
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        if t < self.t_start - 1e-9 or t >= self.t_end - 1e-9:
+            if self.value is None:
+                self.value = np.zeros_like(next(iter(truth.values())))
+            return
+        sq = 0.0
+        for name, s in zip(self.signals, self.scale):
+            e = est[name] - truth[name]
+            if name in self.wrap:
+                e = np.pi - np.mod(np.pi - e, 2 * np.pi)
+            sq = sq + (e / s) ** 2
+        inc = np.sqrt(sq) * self.dt
+        self.value = inc if self.value is None else self.value + inc
