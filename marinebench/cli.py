@@ -12,6 +12,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -85,6 +86,105 @@ def run(
             err.print(f"warning: {exp.name}: {n_div} metric values from diverged runs excluded", markup=False)
         if not quiet:
             out.print(f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s -> {target}", markup=False)
+
+
+@app.command()
+def sweep(
+    params: Annotated[list[str], typer.Argument(help="parameters to sweep one at a time (from the config's sweep.params)")],
+    config: Annotated[Path, typer.Option(help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    n: Annotated[int | None, typer.Option("--n", help="points per parameter (default: the config's)")] = None,
+    gnss: Annotated[str | None, typer.Option(help="comma-separated world groups (default: all)")] = None,
+    horizon: Annotated[float | None, typer.Option(help="simulated time per run [s]")] = None,
+    out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>_sweep/")] = None,
+    seed: Annotated[int | None, typer.Option(help="root seed")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """One-at-a-time sensitivity sweeps in one batch: metrics.csv (param, param_value, gnss), table.md, figure."""
+    import time as _time
+
+    from marinebench.experiments.runner import run as run_experiment
+    from marinebench.experiments.sweep import sweep_experiment, sweep_figure, sweep_table
+    from marinebench.results.writer import atomic_directory, manifest
+
+    if n is not None and n < 2:
+        fail("--n: at least 2 points per parameter")
+    if horizon is not None and horizon <= 0:
+        fail("--horizon: must be positive")
+    try:
+        base, _ = _load(config, [], seed, None)
+        exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
+        from marinebench.config import preflight
+
+        preflight(exp, config)
+    except MarinebenchError as exc:
+        fail(str(exc))
+    target = (out_dir if out_dir is not None else Path("results")) / f"{config.stem}_sweep"
+    t0 = _time.perf_counter()
+    with Progress(
+        TextColumn(f"sweep {len(exp.variants)} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+        TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
+    ) as bar:
+        task = bar.add_task("sweep", total=1)
+        result = run_experiment(exp, progress=lambda k: bar.advance(task, k),
+                                on_start=lambda k: bar.update(task, total=k), traces=False)
+    metric = base.sweep.metric
+    with atomic_directory(target) as tmp:
+        result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        (tmp / "table.md").write_text(sweep_table(result.metrics, metric))
+        (tmp / "figures").mkdir()
+        sweep_figure(result.metrics, metric, base, tmp / "figures" / "sweep.png")
+        (tmp / "manifest.json").write_text(manifest(
+            experiment=exp.name, config_files={"experiment": str(config)}, seed=exp.seed, runs=len(exp.variants),
+            params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
+            dt=exp.scenario.dt, wall_time_s=round(result.wall_time, 3), total_time_s=round(_time.perf_counter() - t0, 3),
+            assumptions=list(base.assumptions)))
+    if not quiet:
+        out.print(f"sweep: {len(exp.variants)} runs x {exp.scenario.horizon:g} s in {result.wall_time:.1f} s -> {target}",
+                  markup=False)
+
+
+@app.command()
+def bench(
+    config: Annotated[Path, typer.Option(help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    params: Annotated[str, typer.Option(help="comma-separated swept parameters")] = "k,delta,eps",
+    n: Annotated[int | None, typer.Option("--n", help="points per parameter (default: the config's)")] = None,
+    horizon: Annotated[float, typer.Option(help="simulated seconds per run in the benchmark")] = 50.0,
+    runs: Annotated[int, typer.Option(help="runs timed with the per-run reference loop")] = 3,
+) -> None:
+    """Time the batched engine against the plain per-run reference on the same runs, in one process."""
+    import resource
+    import time as _time
+
+    from marinebench.experiments.reference import reference_run
+    from marinebench.experiments.runner import run as run_experiment
+    from marinebench.experiments.sweep import sweep_experiment
+
+    try:
+        base, _ = _load(config, [], None, None)
+        exp = sweep_experiment(base, params.split(","), None, n, horizon, config)
+    except MarinebenchError as exc:
+        fail(str(exc))
+    full_horizon = base.scenario.horizon
+    B = len(exp.variants)
+    t0 = _time.perf_counter()
+    batched = run_experiment(exp, traces=False)
+    t_batch = _time.perf_counter() - t0
+    picks = np.linspace(0, B - 1, max(1, min(runs, B))).round().astype(int)
+    t0 = _time.perf_counter()
+    refs = [reference_run(exp, int(i)) for i in picks]
+    t_ref = (_time.perf_counter() - t0) / len(picks)
+    values = batched.metrics.set_index(["variant", "metric"])["value"]
+    worst = max(abs(values[exp.variants[i].name, "J_tot"] / r["J_tot"] - 1) for i, r in zip(picks, refs))
+    scale = full_horizon / horizon
+    per_run_batched = t_batch / B
+    out.print(f"runs: {B} x {horizon:g} s (sweep {params}); reference on {len(picks)} of them", markup=False)
+    out.print(f"batched engine:      {t_batch:8.2f} s  ({per_run_batched * 1e3:.2f} ms per run)", markup=False)
+    out.print(f"per-run reference:   {t_ref * B:8.2f} s  ({t_ref * 1e3:.2f} ms per run, extrapolated to {B} runs)", markup=False)
+    out.print(f"speed-up (same process): {t_ref / per_run_batched:.1f}x", markup=False)
+    out.print(f"extrapolated full sweep ({B} x {full_horizon:g} s): batched {t_batch * scale:.1f} s, "
+              f"reference {t_ref * B * scale:.0f} s", markup=False)
+    out.print(f"largest relative J_tot difference batched vs reference: {worst:.2e}", markup=False)
+    out.print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB", markup=False)
 
 
 class Format(str, Enum):

@@ -132,6 +132,42 @@ class FigureSpec(BaseModel):
     )
 
 
+class SweepParam(BaseModel):
+    """One sweepable parameter: a field of the swept variant's observer, varied over ``range``."""
+
+    model_config = ConfigDict(extra="forbid")
+    key: str = Field(..., description="observer field, e.g. k, delta, eps_scale, delta_p1")
+    range: tuple[float, float]
+    spacing: Literal["linear", "log"] = "linear"
+    fixed: dict[str, Any] = Field(default_factory=dict, description="other observer fields set for this sweep")
+
+    @model_validator(mode="after")
+    def _range(self) -> SweepParam:
+        lo, hi = self.range
+        if lo > hi or (self.spacing == "log" and lo <= 0):
+            raise ValueError(f"bad range {self.range} for {self.spacing} spacing")
+        return self
+
+    def values(self, n: int):
+        import numpy as np
+
+        lo, hi = self.range
+        return np.geomspace(lo, hi, n) if self.spacing == "log" else np.linspace(lo, hi, n)
+
+
+class SweepSpec(BaseModel):
+    """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
+
+    model_config = ConfigDict(extra="forbid")
+    variant: str = Field(..., description="the variant whose observer is swept")
+    params: dict[str, SweepParam] = Field(..., min_length=1)
+    groups: dict[str, dict[str, float]] = Field(
+        default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
+    )
+    metric: str = Field("J_tot", description="metric plotted against each parameter")
+    n: int = Field(100, ge=2, le=100000, description="points per parameter")
+
+
 class EngineOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
     stiffness_limit: float = Field(
@@ -156,6 +192,7 @@ class Experiment(BaseModel):
     figures: list[FigureSpec] = Field(default_factory=list)
     engine: EngineOptions = Field(default_factory=EngineOptions)
     assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
+    sweep: SweepSpec | None = None
     profiles: dict[str, list[str]] = Field(
         default_factory=dict,
         description="named lists of dotted.key=value overrides, selected with `run --profile NAME` "
@@ -183,6 +220,11 @@ class Experiment(BaseModel):
                 unknown = set(self.table.paper.values) - set(names)
                 if unknown:
                     raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
+        if self.sweep is not None:
+            if self.sweep.variant not in names:
+                raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
+            if self.sweep.metric not in kinds:
+                raise ValueError(f"sweep.metric '{self.sweep.metric}' is not among metrics {kinds}")
         for f in self.figures:
             unknown = set(f.variants or []) - set(names)
             if unknown:

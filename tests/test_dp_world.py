@@ -75,3 +75,39 @@ def test_torben_config_runs_through_cli(tmp_path):
     resolved = yaml.safe_load((tmp_path / "torben_fig1" / "config.resolved.yaml").read_text())
     assert resolved["scenario"]["kind"] == "dp_supply"
     assert (tmp_path / "torben_fig1" / "figures" / "fig2_transient.png").exists()
+
+
+def test_instability_at_delta_equal_dt_without_cond_check():
+    """Torben Sec. IV-B2: with delta ~ dt, cond(I - Phi2 Phi1^-1) explodes; without the check the jumps
+    destroy the estimate (here in raw SI coordinates, cond ~1e25), with the check nothing jumps."""
+    common = ["variants.1.observer.delta=0.05", "variants.1.observer.jump_coordinates=raw", "scenario.horizon=100"]
+    off = short(*common, "variants.1.observer.check_cond=false")
+    on = short(*common, "variants.1.observer.check_cond=true")
+    assert off["resetting", "J_tot"] > 1e6 * off["npo", "J_tot"] or not np.isfinite(off["resetting", "J_tot"])
+    assert on["resetting", "n_jumps"] == 0 and on["resetting", "J_tot"] == pytest.approx(on["npo", "J_tot"], rel=1e-12)
+    assert on["resetting", "cond_max"] > 1e20
+
+
+def test_bis_scaled_condition_number_and_check():
+    m = short("variants.1.observer.delta=0.05", "scenario.horizon=60")
+    assert m["resetting", "cond_max"] > 1e10 and m["resetting", "n_jumps"] == 0  # c_max = 1e10 blocks every jump
+    m = short("scenario.horizon=60")
+    assert m["resetting", "log10_cond_mean"] < 10  # delta = 2.5 s: well conditioned in bis units
+
+
+def test_sweep_cli_tiny_grid(tmp_path):
+    cfg = ROOT / "configs" / "torben_fig3.yaml"
+    res = CliRunner().invoke(app, ["sweep", "k", "eps", "--config", str(cfg), "--n", "2", "--horizon", "20",
+                                   "--gnss", "dgnss,dualband", "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    d = tmp_path / "torben_fig3_sweep"
+    import pandas as pd
+
+    m = pd.read_csv(d / "metrics.csv")
+    assert {"param", "param_value", "gnss"} <= set(m.columns)
+    j = m[m["metric"] == "J_tot"]
+    assert len(j) == 2 * 2 * 2 and set(j["param"]) == {"k", "eps"} and set(j["gnss"]) == {"dgnss", "dualband"}
+    assert sorted(j[j["param"] == "k"]["param_value"].unique()) == [0.0, 1.0]
+    assert (d / "figures" / "sweep.png").exists() and "| k | dgnss |" in (d / "table.md").read_text()
+    bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])
+    assert bad.exit_code == 2 and "unknown parameter" in bad.output and "sweepable" in bad.output

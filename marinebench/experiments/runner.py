@@ -108,8 +108,10 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
             out[v.name] = {"gains": [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3], "mode": o.mode}
         elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)
             obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
+            K1, K2, K3 = obs.classes[0]["K"]
             out[v.name] = {
-                "K1_L1": obs.K1[0, 0].tolist(), "K2_L1": obs.K2[0, 0].tolist(), "K3_L1": obs.K3[0, 0].tolist(),
+                "K1_L1": K1[0].tolist(), "K2_L1": K2[0].tolist(), "K3_L1": K3[0].tolist(),
+                "K1_L2": K1[1].tolist(), "K2_L2": K2[1].tolist(), "K3_L2": K3[1].tolist(),
                 "poles_L1_re": sorted(np.round(obs.poles[0].real, 4).tolist()),
                 "poles_L2_re": sorted(np.round(obs.poles[1].real, 4).tolist()),
             }

@@ -50,17 +50,20 @@ def fto_jump(
     Shapes: z (B, n), phi (B, n, n), innovation and eps (B, p), k (B,).
     """
     n = z1.shape[1]
-    Y = np.linalg.solve(np.swapaxes(phi1, 1, 2), np.swapaxes(phi2, 1, 2)).swapaxes(1, 2)  # Y Phi1 = Phi2
-    X = np.eye(n) - Y
-    rhs = z2 - np.einsum("bij,bj->bi", Y, z1)
+    sc = scale[None, :]
     with np.errstate(all="ignore"):
-        Xs = X * scale[None, None, :] / scale[None, :, None]  # S^-1 X S
+        # everything in the scaled coordinates z_s = S^-1 z, where Phi and X are far better conditioned
+        p1 = phi1 * scale[None, None, :] / scale[None, :, None]
+        p2 = phi2 * scale[None, None, :] / scale[None, :, None]
+        Ys = np.linalg.solve(np.swapaxes(p1, 1, 2), np.swapaxes(p2, 1, 2)).swapaxes(1, 2)  # Ys p1 = p2
+        Xs = np.eye(n) - Ys
+        rhs = z2 / sc - np.einsum("bij,bj->bi", Ys, z1 / sc)
         cond = np.linalg.cond(Xs)
-        finite = np.isfinite(X).all(axis=(1, 2))
+        finite = np.isfinite(Xs).all(axis=(1, 2))
         z_star = np.full_like(z1, np.nan)
         ok = finite & (np.abs(np.linalg.det(Xs)) > 0) if finite.any() else finite
         if ok.any():
-            z_star[ok] = np.linalg.solve(X[ok], rhs[ok][..., None])[..., 0]
+            z_star[ok] = np.linalg.solve(Xs[ok], rhs[ok][..., None])[..., 0] * sc
     trigger = (np.abs(innovation) >= eps).any(axis=1) & ok
     if check:
         trigger &= cond <= c_max
