@@ -50,7 +50,7 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
             for g in groups:
                 variants.append(Variant(name=f"{p}_{i:03d}_{g}", observer=observer, world=spec.groups[g],
                                         tags={"param": p, "param_value": float(value), "gnss": g}))
-    update = {"variants": variants, "figures": [], "table": None, "sweep": None}
+    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": f"{exp.name}_sweep"}
     scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
     update["scenario"] = scenario
     return exp.model_copy(update=update)
