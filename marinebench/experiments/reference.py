@@ -11,24 +11,13 @@ from __future__ import annotations
 import numpy as np
 
 from marinebench.config import Experiment
-from marinebench.design.kalman import kalman_gains
+from marinebench.design.kalman import dp_system, kalman_gains
 from marinebench.experiments.runner import make_world
 from marinebench.models.supply import bis_scale
 from marinebench.observers.base import wrap_angle
 from marinebench.observers.fto import rk4_maps
 
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
-
-
-def _a_matrix(psi: float, M: np.ndarray, D: np.ndarray) -> np.ndarray:
-    c, s = np.cos(psi), np.sin(psi)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    Minv = np.linalg.inv(M)
-    A = np.zeros((9, 9))
-    A[0:3, 6:9] = R
-    A[6:9, 3:6] = Minv @ R.T
-    A[6:9, 6:9] = -Minv @ D
-    return A, R
 
 
 def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, float]:
@@ -74,7 +63,8 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
         k4 = f(t + dt, x + dt * k3)
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         # observers: z_i+ = P_i z_i + H_i (B tau + L_i y), Phi_i+ = P_i Phi_i
-        A, R = _a_matrix(y[2], M, D)
+        A = dp_system(M, D, y[2])  # eq. (43) at the measured heading
+        R = A[0:3, 6:9]
         for i in range(2):
             L = np.vstack([g[i].K1, g[i].K2, Minv @ R.T @ g[i].K3])
             Acl = A.copy()
