@@ -97,15 +97,19 @@ def sweep(
     horizon: Annotated[float | None, typer.Option(help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>_sweep/")] = None,
     seed: Annotated[int | None, typer.Option(help="root seed")] = None,
+    chunk_size: Annotated[int, typer.Option(help="runs per batch; finished batches survive an interruption")] = 300,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
-    """One-at-a-time sensitivity sweeps in one batch: metrics.csv (param, param_value, gnss), table.md, figure."""
+    """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
+
+    Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches."""
     import time as _time
 
-    from marinebench.experiments.runner import run as run_experiment
-    from marinebench.experiments.sweep import sweep_experiment, sweep_figure, sweep_table
+    from marinebench.experiments.sweep import discard_partial, run_chunked, sweep_experiment, sweep_figure, sweep_table
     from marinebench.results.writer import atomic_directory, manifest
 
+    if chunk_size < 1:
+        fail("--chunk-size: must be at least 1")
     if n is not None and n < 2:
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
@@ -125,22 +129,24 @@ def sweep(
         TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
     ) as bar:
         task = bar.add_task("sweep", total=1)
-        result = run_experiment(exp, progress=lambda k: bar.advance(task, k),
-                                on_start=lambda k: bar.update(task, total=k), traces=False)
+        metrics, wall, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
+                                         on_start=lambda k: bar.update(task, total=k))
+        bar.update(task, completed=bar.tasks[0].total)
     metric = base.sweep.metric
     with atomic_directory(target) as tmp:
-        result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "table.md").write_text(sweep_table(result.metrics, metric))
+        metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        (tmp / "table.md").write_text(sweep_table(metrics, metric))
         (tmp / "figures").mkdir()
-        sweep_figure(result.metrics, metric, base, tmp / "figures" / "sweep.png")
+        sweep_figure(metrics, metric, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
             experiment=exp.name, config_files={"experiment": str(config)}, seed=exp.seed, runs=len(exp.variants),
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
-            dt=exp.scenario.dt, wall_time_s=round(result.wall_time, 3), total_time_s=round(_time.perf_counter() - t0, 3),
-            assumptions=list(base.assumptions)))
+            dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, wall_time_s=round(wall, 3),
+            total_time_s=round(_time.perf_counter() - t0, 3), assumptions=list(base.assumptions)))
+    discard_partial(target)
     if not quiet:
-        out.print(f"sweep: {len(exp.variants)} runs x {exp.scenario.horizon:g} s in {result.wall_time:.1f} s -> {target}",
-                  markup=False)
+        out.print(f"sweep: {len(exp.variants)} runs x {exp.scenario.horizon:g} s in {wall:.1f} s of simulation "
+                  f"({ran} batch(es) run) -> {target}", markup=False)
 
 
 @app.command()

@@ -114,3 +114,33 @@ def test_sweep_cli_tiny_grid(tmp_path):
     assert (d / "figures" / "sweep.png").exists() and "| k | dgnss |" in (d / "table.md").read_text()
     bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "unknown parameter" in bad.output and "sweepable" in bad.output
+
+
+def test_interrupted_sweep_resumes_without_rerunning_finished_batches(tmp_path, monkeypatch):
+    from marinebench.experiments import runner as runner_module
+    from marinebench.experiments.sweep import run_chunked, sweep_experiment
+
+    cfg = ROOT / "configs" / "torben_fig3.yaml"
+    base, _ = load_experiment(cfg)
+    exp = sweep_experiment(base, ["k"], ["dgnss"], 4, 15.0, cfg)
+    target = tmp_path / "sweep"
+    reference, _, ran = run_chunked(exp, tmp_path / "uninterrupted", chunk_size=2)
+    assert ran == 2
+    real_run, calls = runner_module.run, []
+
+    def flaky(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # the user stops the sweep during the second batch
+        return real_run(*args, **kwargs)
+
+    monkeypatch.setattr(runner_module, "run", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        run_chunked(exp, target, chunk_size=2)
+    monkeypatch.setattr(runner_module, "run", real_run)
+    resumed, _, ran = run_chunked(exp, target, chunk_size=2)
+    assert ran == 1  # only the unfinished batch ran again
+    key = ["variant", "metric"]
+    a = reference.sort_values(key).reset_index(drop=True)
+    b = resumed.sort_values(key).reset_index(drop=True)
+    assert a["value"].tolist() == b["value"].tolist()

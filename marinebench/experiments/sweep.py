@@ -96,3 +96,51 @@ def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path
 
 def values_table(exp: Experiment, params: list[str], n: int) -> dict[str, np.ndarray]:
     return {p: exp.sweep.params[p].values(n) for p in params}
+
+
+def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None) -> tuple[pd.DataFrame, float, int]:
+    """Run the sweep's runs in chunks, saving each chunk's metrics in ``.<target>.partial/``.
+
+    An interrupted sweep resumes: chunks already on disk for the same experiment (same resolved config,
+    compared by hash) are loaded, not rerun. Runs are independent of the batch they are in (per-run
+    seeding), so chunking does not change any number. Returns (metrics, simulation wall time, chunks run).
+    """
+    import hashlib
+    import shutil
+
+    from marinebench.experiments.runner import run
+    from marinebench.results.writer import atomic_write_text
+
+    key = hashlib.sha256(exp.model_dump_json().encode()).hexdigest()
+    partial = target.parent / f".{target.name}.partial"
+    stale = partial.exists() and (
+        not (partial / "key").exists() or (partial / "key").read_text().strip() != key
+    )
+    if stale:
+        shutil.rmtree(partial)  # a different sweep was interrupted here: start afresh
+    partial.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(partial / "key", key)
+    chunks = [exp.variants[i : i + chunk_size] for i in range(0, len(exp.variants), chunk_size)]
+    n_steps = round(exp.scenario.horizon / exp.scenario.dt)
+    if on_start is not None:
+        on_start(n_steps * len(chunks))
+    frames, wall, ran = [], 0.0, 0
+    for c, variants in enumerate(chunks):
+        path = partial / f"chunk-{c:04d}.csv"
+        if path.exists():
+            frames.append(pd.read_csv(path))
+            if progress is not None:
+                progress(n_steps)
+            continue
+        result = run(exp.model_copy(update={"variants": variants}), progress=progress, traces=False)
+        atomic_write_text(path, result.metrics.to_csv(index=False, float_format="%.17g"))
+        frames.append(pd.read_csv(path))
+        wall += result.wall_time
+        ran += 1
+    return pd.concat(frames, ignore_index=True), wall, ran
+
+
+def discard_partial(target: Path) -> None:
+    import shutil
+
+    shutil.rmtree(target.parent / f".{target.name}.partial", ignore_errors=True)
