@@ -72,7 +72,11 @@ class Waves(BaseModel):
     gamma: float | None = Field(3.3, gt=0, description="peak enhancement; null = DNV rule (1.87 here)")
     n_components: int = Field(40, ge=1, le=1000)
     w_max_factor: float = Field(3.0, gt=1, description="highest frequency as a multiple of the peak")
-    rao: Vec3 = Field((0.26, 0.21, 0.0148), description="|RAO| surge [m/m], sway [m/m], yaw [rad/m] (130 deg)")
+    rao: Vec3 = Field((0.26, 0.21, 0.0148), description="|RAO| surge [m/m], sway [m/m], yaw [rad/m] at the peak (130 deg)")
+    rao_rolloff: float = Field(
+        2.0, ge=0, description="|RAO(w)| = |RAO| (w_p / w)^rolloff above the peak frequency w_p (0: constant); "
+        "a 76 m hull does not follow short waves",
+    )
 
 
 class DpSensors(BaseModel):
@@ -172,6 +176,7 @@ class DpWorld:
             dw = w.w_max_factor * w0 / w.n_components
             omega = dw * (np.arange(w.n_components) + 0.5)
             amp = component_amplitudes(omega, np.full_like(omega, dw), w.hs, w.tp, gamma)
+            amp = amp * np.minimum(1.0, (w0 / omega) ** w.rao_rolloff)  # frequency shape of the motion RAO
             phases = np.array([g.uniform(0, 2 * np.pi, w.n_components) for g in stream_rngs(root_seed, seeds, "waves")])
             self.wave = (omega, amp, phases[where], np.array(w.rao))
         self.filter_every = self.every if s.hold == "measurement" else 1

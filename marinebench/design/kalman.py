@@ -11,7 +11,7 @@ noise enters where the disturbance acts:
 M^-1 R^T(psi) K3]`` equals L0 at psi = 0. Units: Q in (m/s^2)^2/s for surge/sway and (rad/s^2)^2/s for
 yaw; R in m^2 and rad^2 (``shared/reference/baselines.md`` section 3.3).
 
-``bias_units = "force"`` (N), ``"kN"`` or ``"MN"`` design on the model with the bias in that force unit
+``bias_units = "force"`` (N), ``"kN"``, ``"10kN"``, ``"100kN"`` or ``"MN"`` design on the model with the bias in that force unit
 (``nu_dot = ... + unit M^-1 b_unit``). The paper does not state its units; the gain's speed depends on
 them by orders of magnitude (force: slowest pole ~6e-5 rad/s; kN: ~2e-3; acceleration: ~0.6).
 """
@@ -55,8 +55,8 @@ def gain_at(g: DpGains, M: np.ndarray, psi: float = 0.0) -> np.ndarray:
     return np.vstack([g.K1, g.K2, np.linalg.solve(M, R.T @ g.K3)])
 
 
-BiasUnits = Literal["acceleration", "force", "kN", "MN"]
-FORCE_UNIT = {"force": 1.0, "kN": 1e3, "MN": 1e6}
+BiasUnits = Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"]
+FORCE_UNIT = {"force": 1.0, "kN": 1e3, "10kN": 1e4, "100kN": 1e5, "MN": 1e6}
 
 
 def kalman_gains(M: np.ndarray, D: np.ndarray, Q: np.ndarray, R: np.ndarray, bias_units: BiasUnits = "acceleration") -> DpGains:

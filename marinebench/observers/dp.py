@@ -33,7 +33,7 @@ class NpoTuning(BaseModel):
     kind: Literal["npo"] = "npo"
     q: Vec3 = Field((50.0, 50.0, 10.0), description="Q1 diagonal (bias process noise, acceleration units)")
     r: Vec3 = Field((15.0, 15.0, 1.0), description="R1 diagonal [m^2, m^2, rad^2]")
-    bias_units: Literal["acceleration", "force", "kN", "MN"] = Field(
+    bias_units: Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"] = Field(
         "acceleration", description="units of the bias in the Kalman design (the paper does not say; see design/kalman.py)"
     )
 
