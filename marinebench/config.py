@@ -386,7 +386,7 @@ def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key."""
     from marinebench.errors import DesignError, StiffnessError
-    from marinebench.experiments.runner import make_observer, plant_of, signals_of
+    from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of
     from marinebench.sim.engine import ObserverGroup, check_step
 
     plant = plant_of(exp.scenario)
@@ -396,7 +396,7 @@ def preflight(exp: Experiment, file: Path) -> None:
         unknown = set(v.world) - set(allowed)
         if unknown:
             raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
-        if v.observer.kind not in signals_of(exp.scenario):
+        if v.observer.kind not in observer_kinds_for(exp.scenario):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to a {exp.scenario.kind} scenario")
         try:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))

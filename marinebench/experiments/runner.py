@@ -30,8 +30,8 @@ from marinebench.sim.recorders import ErrorMoments, NormIntegral, Traces
 OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto")}
 
 
-def signals_of(scenario) -> tuple[str, ...]:
-    """Observer kinds that apply to a scenario kind."""
+def observer_kinds_for(scenario) -> tuple[str, ...]:
+    """Observer kinds that apply to a scenario's kind."""
     return OBSERVER_KINDS[scenario.kind]
 
 
@@ -78,7 +78,7 @@ class RunResult:
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
     """One batched observer per observer kind, with one tuning per run."""
     groups = []
-    for kind in signals_of(exp.scenario):
+    for kind in observer_kinds_for(exp.scenario):
         idx = np.array([b for b, v in enumerate(run_variant) if exp.variants[v].observer.kind == kind], dtype=int)
         if idx.size:
             tunings = [exp.variants[run_variant[b]].observer for b in idx]

@@ -14,7 +14,6 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
@@ -92,10 +91,6 @@ def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-def values_table(exp: Experiment, params: list[str], n: int) -> dict[str, np.ndarray]:
-    return {p: exp.sweep.params[p].values(n) for p in params}
 
 
 def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None) -> tuple[pd.DataFrame, float, int]:
