@@ -1,0 +1,1 @@
+"""Tracking controllers (batched per DOF): RISE and saturated super-twisting RISE (S+RISE)."""

@@ -1,0 +1,96 @@
+"""Leonard-like ROV model and the RISE / S+RISE controllers (Tijjani et al.), without the engine yet."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise
+from marinebench.models.rov import LeonardLike, LeonardLikeParams
+
+ROV = LeonardLike(LeonardLikeParams())
+ZERO = np.zeros((1, 2))
+
+
+def test_buoyancy_equilibrium():
+    x = np.zeros((1, 4))
+    hold = np.array([[9.0, 0.0]])  # 9 N of down-thrust cancels the +9 N net buoyancy
+    assert np.allclose(ROV.derivative(x, hold, ZERO), 0.0)
+    rise = ROV.derivative(x, ZERO, ZERO)
+    assert rise[0, 2] < 0  # unforced, the vehicle accelerates upwards (z down)
+
+
+def test_terminal_rise_velocity_and_damping_decay():
+    x = np.array([[0.3, 0.0, 0.0, 0.5]])
+    rates = []
+    for _ in range(4000):
+        x = x + 0.005 * ROV.derivative(x, ZERO, ZERO)
+        rates.append(x[0, 3])
+    assert np.all(np.diff(np.abs(rates)) <= 0) and abs(rates[-1]) < 0.01  # yaw rate decays (tau ~ 9 s)
+    w = x[0, 2]  # terminal heave velocity: (d_l + d_q |w|) |w| = 9 N
+    assert (ROV.p.d_heave_lin + ROV.p.d_heave_quad * abs(w)) * abs(w) == pytest.approx(9.0, rel=1e-3)
+
+
+@given(st.floats(-500, 500), st.floats(-200, 200))
+def test_allocation_respects_thruster_limits(tz, tp):
+    f, achieved = ROV.allocate(np.array([[tz, tp]]))
+    assert np.all(np.abs(f) <= ROV.p.thrust_max + 1e-12)
+    assert np.all(np.abs(achieved) <= ROV.limits + 1e-9)
+    inside = np.abs([tz, tp]) <= ROV.limits
+    assert np.allclose(achieved[0, inside], np.array([tz, tp])[inside])
+
+
+def test_srise_starts_at_zero_and_gains_stay_in_their_bounds():
+    c = SRise([TABLE_II_DEPTH, TABLE_II_YAW], batch=3)
+    e1 = np.array([[0.3, 1.0], [-2.0, 0.0], [0.0, -1.0]])
+    assert np.allclose(c.command(e1, np.zeros_like(e1), 0.01), 0.0)  # tau(t0) = 0 by design of (15)
+    e2 = np.linspace(-5, 5, 1001)[:, None].repeat(2, axis=1)
+    K = c.K(e2)
+    k_max = c.g["k0"] * c.g["eps1"] ** (c.g["delta1"] - 1)
+    assert np.all(K <= k_max + 1e-12) and np.all(K > 0)
+    assert np.all(c.Bgain(e2) >= c.g["beta"] * c.g["eps2"] - 1e-15)
+    assert np.all(c.Lambda(e2) <= c.g["lambda0"] * c.g["eps3"] ** (c.g["delta2"] - 1) + 1e-12)
+
+
+@settings(max_examples=50)
+@given(st.floats(-1e3, 1e3))
+def test_srise_proportional_action_is_bounded_by_the_saturated_error(e1):
+    """e2 = e1_dot + alpha tanh(e1): at rest, the state feedback (K+1) e2 cannot exceed
+    k0 alpha^delta1 + alpha (or k0 eps1^(delta1-1) alpha when alpha < eps1), whatever the error."""
+    c = SRise([TABLE_II_DEPTH, TABLE_II_YAW], batch=1)
+    e = np.array([[e1, e1]])
+    e2 = c.e2(e, np.zeros_like(e))
+    p = (c.K(e2) + 1) * e2
+    g = c.g
+    bound = g["k0"] * np.maximum(g["alpha"], g["eps1"]) ** g["delta1"] + g["alpha"]
+    assert np.all(np.abs(p) <= bound + 1e-9)
+    # RISE's proportional action is unbounded in e1
+    r = Rise([RiseGains(), RiseGains()], batch=1)
+    r.command(np.zeros((1, 2)), np.zeros((1, 2)), 0.01)
+    if abs(e1) > 1:
+        assert np.all(np.abs(r.command(e, np.zeros_like(e), 0.01)) > np.abs(p))
+
+
+def smooth_step(t, t0, t1, a, b):
+    s = np.clip((t - t0) / (t1 - t0), 0, 1)
+    blend = s**3 * (10 - 15 * s + 6 * s**2)  # C2 minimum-jerk blend
+    return a + (b - a) * blend
+
+
+def test_rise_closed_loop_tracks_depth_and_yaw_on_the_nominal_model():
+    """State feedback on the plant: depth 0 -> 0.3 m and yaw 0 -> 60 deg in 5 s, then hold.
+    (S+RISE with the Table II gains winds up against the thruster limits on this stand-in model; its
+    closed loop is part of the open Tijjani issue.)"""
+    ctrl, dt = Rise([RiseGains(), RiseGains(alpha1=4, ks=20, alpha2=0.05, beta=1.0)], 1), 0.005
+    x = np.zeros((1, 4))
+    worst = 0.0
+    for k in range(int(25 / dt)):
+        t = k * dt
+        ref = np.array([[smooth_step(t, 0, 5, 0, 0.3), smooth_step(t, 0, 5, 0, np.deg2rad(60))]])
+        ref_dot = (np.array([[smooth_step(t + 1e-4, 0, 5, 0, 0.3), smooth_step(t + 1e-4, 0, 5, 0, np.deg2rad(60))]]) - ref) / 1e-4
+        tau = ctrl.command(ref - x[:, :2], ref_dot - x[:, 2:], dt)
+        _, achieved = ROV.allocate(tau)
+        x = x + dt * ROV.derivative(x, achieved, ZERO)
+        if t > 15:
+            worst = max(worst, abs(ref[0, 0] - x[0, 0]))
+    assert worst < 0.01 and abs(np.rad2deg(x[0, 1]) - 60) < 1.0
