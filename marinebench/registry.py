@@ -16,19 +16,24 @@ def _kinds_of(union) -> dict[str, str]:
 
 def kinds() -> dict[str, dict[str, str]]:
     from marinebench.config import ObserverTuning
+    from marinebench.dp_scenario import DpScenario, Event
     from marinebench.environment.signals import Signal
     from marinebench.models.cybership2 import CyberShip2Params
+    from marinebench.models.supply import SupplyVesselParams
+    from marinebench.scenario import Scenario
     from marinebench.sensors.noise import Noise
 
     return {
-        "vessels": _kinds_of(CyberShip2Params),
+        "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario)},
+        "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyVesselParams)},
         "observers": _kinds_of(ObserverTuning),
         "signals": _kinds_of(Signal),
         "noise": _kinds_of(Noise),
+        "events": _kinds_of(Event),
         "metrics": {
             "std": "standard deviation of est - truth over the window (Bejarano Tables III/IV)",
             "rmse": "root mean square of est - truth over the window",
             "max_abs": "largest |est - truth| over the window (peaking)",
+            "j_tot": "Torben eq. (50): integral of the bis-scaled state-error norm over a window",
         },
-        "scenarios": {"open_loop_asv": "open-loop CyberShip II world (Bejarano et al. Sec. IV)"},
     }

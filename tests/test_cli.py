@@ -116,5 +116,6 @@ def test_schema_is_json_schema():
 def test_list_shows_registered_kinds():
     res = runner.invoke(app, ["list"])
     assert res.exit_code == 0
-    for kind in ("cybership2", "bejarano", "liu_eso", "random_sinusoid", "bandlimited_uniform", "std"):
+    for kind in ("cybership2", "bejarano", "liu_eso", "random_sinusoid", "bandlimited_uniform", "std",
+                 "dp_supply", "supply_dp_linear", "npo", "resetting_fto", "impulse", "j_tot"):
         assert kind in res.output
