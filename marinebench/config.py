@@ -21,6 +21,7 @@ from marinebench.errors import ConfigError
 from marinebench.observers.bejarano import BejaranoTuning
 from marinebench.observers.dp import NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
+from marinebench.rov_scenario import ControllerSpec, RovScenario
 from marinebench.scenario import Scenario
 
 ObserverTuning = Annotated[
@@ -33,7 +34,9 @@ def _scenario_kind(v) -> str:
 
 
 AnyScenario = Annotated[
-    Annotated[Scenario, Tag("open_loop_asv")] | Annotated[DpScenario, Tag("dp_supply")],
+    Annotated[Scenario, Tag("open_loop_asv")]
+    | Annotated[DpScenario, Tag("dp_supply")]
+    | Annotated[RovScenario, Tag("rov_tracking")],
     Discriminator(_scenario_kind),
 ]
 NAME = r"^[A-Za-z0-9_.+-]+$"
@@ -45,11 +48,18 @@ class Variant(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(..., pattern=NAME, description="variant name used in tables and metrics.csv")
     label: str | None = Field(None, description="legend label (default: the name)")
-    observer: ObserverTuning
+    observer: ObserverTuning | None = Field(None, description="the observer under test (estimation experiments)")
+    controller: ControllerSpec | None = Field(None, description="the controller (closed-loop rov_tracking scenarios)")
     world: dict[str, float] = Field(
         default_factory=dict, description="per-run world parameters (e.g. gnss_sigma for dp_supply scenarios)"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
+
+    @model_validator(mode="after")
+    def _one_subject(self) -> Variant:
+        if (self.observer is None) == (self.controller is None):
+            raise ValueError("give exactly one of 'observer' or 'controller'")
+        return self
 
 
 class ErrorMetric(BaseModel):
@@ -95,7 +105,24 @@ class JTotMetric(BaseModel):
         return start, self.t_end if self.t_end is not None else horizon
 
 
-Metric = Annotated[ErrorMetric | JTotMetric, Field(discriminator="kind")]
+class IntMetric(BaseModel):
+    """Tijjani's INT = integral of tau^2 dt from the first time |e| <= tol, per DOF (signals depth, yaw)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["int"] = "int"
+    name: str = Field("int", pattern=NAME)
+    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
+    tol: dict[str, float] = Field(
+        default_factory=lambda: {"depth": 0.01, "yaw": 0.0175},
+        description="tracking-error tolerance that marks 'reached' [m, rad]",
+    )
+
+    @property
+    def label(self) -> str:
+        return self.name
+
+
+Metric = Annotated[ErrorMetric | JTotMetric | IntMetric, Field(discriminator="kind")]
 
 
 class PaperValues(BaseModel):
@@ -209,6 +236,8 @@ class Experiment(BaseModel):
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"metric names must be unique: {kinds}")
         for m in self.metrics:
+            if m.kind == "int":
+                continue
             start, end = m.window(self.scenario.horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or self.scenario.horizon)
             if start >= end:
                 raise ValueError(f"metric '{m.label}' window starts at {start} s, after its end {end} s")
@@ -352,7 +381,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
     tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "impulse", "slow", "std", "rmse", "max_abs", "j_tot"}
+            "open_loop_asv", "dp_supply", "rov_tracking", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int"}
     return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 
@@ -392,19 +421,26 @@ def preflight(exp: Experiment, file: Path) -> None:
     plant = plant_of(exp.scenario)
     groups = []
     allowed = getattr(exp.scenario, "PER_RUN", ())
+    closed_loop = exp.scenario.kind == "rov_tracking"
     for i, v in enumerate(exp.variants):
         unknown = set(v.world) - set(allowed)
         if unknown:
             raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+        if closed_loop != (v.controller is not None):
+            need = "a 'controller'" if closed_loop else "an 'observer'"
+            raise ConfigError(file, f"variants.{i}", f"a {exp.scenario.kind} scenario needs {need} in every variant")
+        if closed_loop:
+            continue
         if v.observer.kind not in observer_kinds_for(exp.scenario):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to a {exp.scenario.kind} scenario")
         try:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))
         except DesignError as exc:
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+    signals = set(groups[0].observer.signals) if groups else {"depth", "yaw"}
     for j, m in enumerate(exp.metrics):
-        if m.kind != "j_tot":
-            bad = set(m.signals) - set(groups[0].observer.signals)
+        if m.kind not in ("j_tot", "int"):
+            bad = set(m.signals) - signals
             if bad:
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
     if exp.engine.check_step:

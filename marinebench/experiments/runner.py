@@ -18,16 +18,18 @@ from marinebench.config import Experiment
 from marinebench.dp_scenario import DpWorld
 from marinebench.metrics.stats import mean_ci
 from marinebench.models.cybership2 import CyberShip2
+from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.dp import DpObserver
 from marinebench.observers.liu_eso import LiuEsoObserver
+from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
-from marinebench.sim.recorders import ErrorMoments, NormIntegral, Traces
+from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, Traces
 
-OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto")}
+OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto"), "rov_tracking": ()}
 
 
 def observer_kinds_for(scenario) -> tuple[str, ...]:
@@ -36,7 +38,7 @@ def observer_kinds_for(scenario) -> tuple[str, ...]:
 
 
 def plant_of(scenario):
-    return CyberShip2(scenario.vessel) if scenario.kind == "open_loop_asv" else SupplyVessel(scenario.vessel)
+    return {"open_loop_asv": CyberShip2, "dp_supply": SupplyVessel, "rov_tracking": LeonardLike}[scenario.kind](scenario.vessel)
 
 
 def make_observer(kind: str, tunings: list, scenario, plant):
@@ -54,6 +56,12 @@ def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
     sc = exp.scenario
     if sc.kind == "open_loop_asv":
         return OpenLoopASV(sc, exp.seed, run_seed)
+    if sc.kind == "rov_tracking":
+        specs = {}
+        for b, v in enumerate(run_variant):
+            spec = exp.variants[v].controller
+            specs.setdefault(spec.model_dump_json(), (spec, []))[1].append(b)
+        return RovWorld(sc, exp.seed, run_seed, list(specs.values()))
     per_run = {}
     for key in sc.PER_RUN:
         if any(key in v.world for v in exp.variants):
@@ -79,7 +87,8 @@ def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[Observ
     """One batched observer per observer kind, with one tuning per run."""
     groups = []
     for kind in observer_kinds_for(exp.scenario):
-        idx = np.array([b for b, v in enumerate(run_variant) if exp.variants[v].observer.kind == kind], dtype=int)
+        idx = np.array([b for b, v in enumerate(run_variant)
+                        if exp.variants[v].observer is not None and exp.variants[v].observer.kind == kind], dtype=int)
         if idx.size:
             tunings = [exp.variants[run_variant[b]].observer for b in idx]
             groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant), idx))
@@ -93,7 +102,9 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
     out = {}
     for v in exp.variants:
         o = v.observer
-        if o.kind == "bejarano":
+        if o is None:
+            out[v.name] = {"controller": v.controller.model_dump()}
+        elif o.kind == "bejarano":
             rot, pos = bejarano.design(o)
             out[v.name] = {
                 "L_psi": rot.gain[:, 0].tolist(),
@@ -138,9 +149,13 @@ def run(
         if m.kind == "j_tot":
             start, end = m.window(sc.horizon)
             recorders.append(NormIntegral(list(DP_SIGNALS), bis_scale(sc.vessel), {"psi"}, start, end, sc.dt))
+        elif m.kind == "int":
+            recorders.append(ControlEnergy(m.signals, [f"tau_{s}" for s in m.signals], [m.tol[s] for s in m.signals], sc.dt))
         else:
             recorders.append(ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon))
     trace_signals = sorted({s for g in groups for s in g.observer.signals})
+    if hasattr(world, "estimates"):
+        trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(world.truth(0.0, world.x0)))
     tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
     if on_start is not None:
         on_start(n_steps)
@@ -152,6 +167,8 @@ def run(
     for spec, rec in zip(exp.metrics, recorders):
         if spec.kind == "j_tot":
             per_metric.append((spec.label, {"z": rec.value}))
+        elif spec.kind == "int":
+            per_metric.append((spec.label, rec.value))
         else:
             per_metric.append((spec.label, rec.result(spec.kind)))
     for g in groups:  # observer diagnostics (resets, condition numbers), signal "z"

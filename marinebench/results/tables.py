@@ -18,6 +18,8 @@ def _window(exp: Experiment, name: str) -> str:
     if m.kind == "j_tot":
         a, b = m.window(exp.scenario.horizon)
         return f"{name}: ∫‖z_bis − ẑ_bis‖dt over t ∈ [{a:g}, {b:g}) s"
+    if m.kind == "int":
+        return f"{name}: ∫τ²dt from the first time the tracking error is within {m.tol}"
     return f"{name}: {m.kind} of est − truth over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 
@@ -69,7 +71,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
                 if paper is not None and not multi:
                     row.append(fmt(paper.values.get(v.name, {}).get(sig, float("nan"))))
         lines.append("| " + " | ".join(row) + " |")
-    labels = {v.name: v.observer.model_dump() for v in exp.variants}
+    labels = {v.name: (v.observer or v.controller).model_dump() for v in exp.variants}
     lines += ["", "Variants:", ""]
     lines += [f"- `{name}`: " + ", ".join(f"{k}={val}" for k, val in t.items() if val is not None) for name, t in labels.items()]
     return "\n".join(lines) + "\n"

@@ -77,6 +77,7 @@ def simulate(
     nc = len(continuous)
     state = [world.x0.copy()] + [g.observer.init() for g in groups]
     begin_step = getattr(world, "begin_step", None)
+    world_estimates = getattr(world, "estimates", None)  # e.g. a reference, so est - truth is a tracking error
 
     def rhs(t: float, s: list[np.ndarray]) -> list[np.ndarray]:
         x_dot, y, tau = world.derivative(t, s[0])
@@ -95,6 +96,8 @@ def simulate(
             for g, xh in zip(groups, state[1:]):
                 for name, value in g.observer.outputs(xh).items():
                     est[name][g.index] = value
+            if world_estimates is not None:
+                est.update(world_estimates(t, state[0]))
             truth = world.truth(t, state[0])
             for rec in recorders:
                 rec.update(k, t, truth, est)

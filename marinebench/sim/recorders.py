@@ -108,3 +108,21 @@ class NormIntegral:
             sq = sq + (e / s) ** 2
         inc = np.sqrt(sq) * self.dt
         self.value = inc if self.value is None else self.value + inc
+
+
+class ControlEnergy:
+    """Tijjani's INT: integral of tau^2 dt per DOF from the first time the tracking error of that DOF
+    is within ``tol`` (the robot "reaches the reference") to the end."""
+
+    def __init__(self, signals: list[str], controls: list[str], tol: list[float], dt: float) -> None:
+        self.signals, self.controls, self.tol, self.dt = signals, controls, tol, dt
+        self.value: dict[str, np.ndarray] = {}
+        self.started: dict[str, np.ndarray] = {}
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        for s, c, tol in zip(self.signals, self.controls, self.tol):
+            if s not in self.value:
+                self.value[s] = np.zeros_like(truth[s])
+                self.started[s] = np.zeros(truth[s].shape, dtype=bool)
+            self.started[s] |= np.abs(est[s] - truth[s]) <= tol
+            self.value[s] += np.where(self.started[s], truth[c] ** 2 * self.dt, 0.0)

@@ -1,0 +1,174 @@
+"""ROV depth/yaw tracking world (Tijjani et al.): the Leonard-like ROV in closed loop.
+
+The controllers are part of the world: each run's controller (RISE or S+RISE, from its variant) runs
+every ``control_period`` on the held sensor samples (depth every 50 ms, attitude every 40 ms, Tijjani
+Table I) and its command goes through the thrust allocation and saturation. Velocity feedback for the
+measurement-fed controllers is the true rate sampled with each sensor and held (baselines.md s.5.3).
+
+Truth signals ``depth``, ``yaw`` (and the achieved ``tau_depth``, ``tau_yaw``); the reference is exposed
+as the "estimate" of ``depth`` and ``yaw``, so the RMSE recorder gives the tracking RMSE of Table III.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import ClassVar, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+from marinebench.models.rov import LeonardLike, LeonardLikeParams
+from marinebench.scenario import stream_rngs
+
+
+def min_jerk(t: float, points: list[tuple[float, float]]) -> tuple[float, float]:
+    """Reference through ``(time, value)`` waypoints: hold, then a minimum-jerk move to the next value
+    ending at the next waypoint's time. Returns (value, rate)."""
+    if t <= points[0][0]:
+        return points[0][1], 0.0
+    for (t0, a), (t1, b) in itertools.pairwise(points):
+        if t < t1:
+            s = (t - t0) / (t1 - t0)
+            return a + (b - a) * s**3 * (10 - 15 * s + 6 * s**2), (b - a) * 30 * s**2 * (1 - s) ** 2 / (t1 - t0)
+    return points[-1][1], 0.0
+
+
+class Push(BaseModel):
+    """An external load on the plant: ``force = [F_z (N, down), M_psi (N m)]`` during the interval."""
+
+    model_config = ConfigDict(extra="forbid")
+    t_start: float = Field(..., ge=0)
+    duration: float = Field(..., gt=0)
+    force: tuple[float, float]
+
+
+class Payload(BaseModel):
+    """Scenario S2-C1: a payload of ``weight_fraction`` of the ROV's weight hangs on a thread; it rests on
+    the floor (no load) while the ROV is deeper than ``floor_depth``."""
+
+    model_config = ConfigDict(extra="forbid")
+    weight_fraction: float = Field(0.04, gt=0)
+    floor_depth: float = Field(0.25, gt=0)
+
+
+class RovSensors(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    depth_period: float = Field(0.05, gt=0, description="[s] pressure sensor (Tijjani Table I)")
+    attitude_period: float = Field(0.04, gt=0, description="[s] IMU (Tijjani Table I)")
+    depth_noise: float = Field(0.003, ge=0, description="[m] white noise std of the depth samples (assumed)")
+    yaw_noise_deg: float = Field(0.1, ge=0, description="[deg] white noise std of the yaw samples (assumed)")
+
+
+class RovScenario(BaseModel):
+    """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["rov_tracking"] = "rov_tracking"
+    name: str = Field(..., min_length=1)
+    description: str = ""
+    vessel: LeonardLikeParams = Field(default_factory=LeonardLikeParams)
+    depth_ref: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], depth [m]) waypoints")
+    yaw_ref_deg: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], yaw [deg]) waypoints")
+    sensors: RovSensors = Field(default_factory=RovSensors)
+    control_period: float = Field(0.01, gt=0, description="[s] controller period (assumed)")
+    damping_scale: float = Field(1.0, gt=0, description="plant damping multiplier (S2-C2: 1.9)")
+    buoyancy_scale: float = Field(1.0, gt=0, description="plant net-buoyancy multiplier (S2-C2: 2.0)")
+    payload: Payload | None = None
+    pushes: list[Push] = Field(default_factory=list)
+    horizon: float = Field(..., gt=0)
+    dt: float = Field(0.002, gt=0)
+
+    PER_RUN: ClassVar[tuple[str, ...]] = ()
+
+    @model_validator(mode="after")
+    def _periods(self):
+        for name in ("depth_period", "attitude_period"):
+            r = getattr(self.sensors, name) / self.dt
+            if abs(r - round(r)) > 1e-9:
+                raise ValueError(f"sensors.{name} must be a multiple of dt={self.dt}")
+        r = self.control_period / self.dt
+        if abs(r - round(r)) > 1e-9:
+            raise ValueError(f"control_period must be a multiple of dt={self.dt}")
+        return self
+
+
+class ControllerSpec(BaseModel):
+    """The controller of a variant in a closed-loop (rov_tracking) scenario."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["rise", "srise"]
+    depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
+    yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
+
+    def build(self, batch: int):
+        if self.kind == "srise":
+            gains = [TABLE_II_DEPTH.model_copy(update=self.depth), TABLE_II_YAW.model_copy(update=self.yaw)]
+            return SRise([SRiseGains.model_validate(g.model_dump()) for g in gains], batch)
+        depth = RiseGains.model_validate({**RiseGains().model_dump(), **self.depth})
+        yaw = RiseGains.model_validate({"alpha1": 4.0, "ks": 20.0, "alpha2": 0.05, "beta": 1.0, **self.yaw})
+        return Rise([depth, yaw], batch)
+
+
+class RovWorld:
+    """Batched closed loop; ``controllers`` are (ControllerSpec, run indices) groups."""
+
+    def __init__(self, sc: RovScenario, root_seed: int, seed_of_run: np.ndarray, controllers: list) -> None:
+        self.sc, self.plant = sc, LeonardLike(sc.vessel)
+        B = len(seed_of_run)
+        seeds = sorted({int(s) for s in seed_of_run})
+        where = np.searchsorted(seeds, seed_of_run)
+        n = int(np.ceil(sc.horizon / sc.dt)) + 2
+        draws = np.array([g.standard_normal((n, 2)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
+        self.noise = draws[where] * np.array([sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg)])
+        self.groups = [(spec.build(len(idx)), np.asarray(idx)) for spec, idx in controllers]
+        self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
+        self.control_every = round(sc.control_period / sc.dt)
+        self.x0 = np.zeros((B, 4))
+        self.x0[:, 0], self.x0[:, 1] = sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])
+        self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
+        self.ydot = np.zeros((B, 2))  # held true rates at the sample instants
+        self.tau = np.zeros((B, 2))  # achieved thrust (after allocation and saturation)
+        self.weight = sc.vessel.mass * 9.81
+        self._yaw_pts = [(t, np.deg2rad(v)) for t, v in sc.yaw_ref_deg]
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        d, dd = min_jerk(t, self.sc.depth_ref)
+        y, yd = min_jerk(t, self._yaw_pts)
+        return np.array([d, y]), np.array([dd, yd])
+
+    def loads(self, t: float, x: np.ndarray) -> np.ndarray:
+        f = np.zeros((x.shape[0], 2))
+        if self.sc.payload is not None:
+            hanging = x[:, 0] < self.sc.payload.floor_depth
+            f[:, 0] += np.where(hanging, self.sc.payload.weight_fraction * self.weight, 0.0)
+        for p in self.sc.pushes:
+            if p.t_start <= t < p.t_start + p.duration:
+                f += np.array(p.force)
+        return f
+
+    def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
+        for ch, every in enumerate(self.every):
+            if k % every == 0:
+                self.y[:, ch] = x[:, ch] + self.noise[:, k, ch]
+                self.ydot[:, ch] = x[:, 2 + ch]
+        if k % self.control_every == 0:
+            ref, ref_dot = self.reference(t)
+            tau = np.zeros_like(self.tau)
+            for ctrl, idx in self.groups:
+                tau[idx] = ctrl.command(ref - self.y[idx], ref_dot - self.ydot[idx], self.sc.control_period)
+            _, self.tau = self.plant.allocate(tau)
+
+    def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        b = self.sc.vessel.net_buoyancy * self.sc.buoyancy_scale
+        x_dot = self.plant.derivative(x, self.tau, self.loads(t, x), self.sc.damping_scale, b)
+        return x_dot, self.y, self.tau
+
+    def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
+        return {"depth": x[:, 0], "yaw": x[:, 1], "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1]}
+
+    def estimates(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
+        """The reference, so that 'est - truth' is the tracking error e1 = eta_d - eta."""
+        ref, _ = self.reference(t)
+        B = x.shape[0]
+        return {"depth": np.full(B, ref[0]), "yaw": np.full(B, ref[1])}
