@@ -98,6 +98,10 @@ class ControllerSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["rise", "srise"]
+    output_scale: float = Field(
+        1.0, gt=0, description="multiplies the command before allocation; 9.81 reads the gains as producing kgf "
+        "(Leonard's thrusters are rated in kgf; the paper does not state the unit of tau)",
+    )
     depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
     yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
 
@@ -121,7 +125,7 @@ class RovWorld:
         n = int(np.ceil(sc.horizon / sc.dt)) + 2
         draws = np.array([g.standard_normal((n, 2)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
         self.noise = draws[where] * np.array([sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg)])
-        self.groups = [(spec.build(len(idx)), np.asarray(idx)) for spec, idx in controllers]
+        self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.output_scale) for spec, idx in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
         self.control_every = round(sc.control_period / sc.dt)
         self.x0 = np.zeros((B, 4))
@@ -155,8 +159,8 @@ class RovWorld:
         if k % self.control_every == 0:
             ref, ref_dot = self.reference(t)
             tau = np.zeros_like(self.tau)
-            for ctrl, idx in self.groups:
-                tau[idx] = ctrl.command(ref - self.y[idx], ref_dot - self.ydot[idx], self.sc.control_period)
+            for ctrl, idx, scale in self.groups:
+                tau[idx] = scale * ctrl.command(ref - self.y[idx], ref_dot - self.ydot[idx], self.sc.control_period)
             _, self.tau = self.plant.allocate(tau)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -67,3 +67,4 @@ def test_closed_loop_needs_controllers_and_estimation_needs_observers(tmp_path):
         preflight(bad, path)
     with pytest.raises(ConfigError, match="exactly one of 'observer' or 'controller'"):
         experiment(tmp_path, [{"name": "x"}])
+
