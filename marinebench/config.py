@@ -437,7 +437,9 @@ def preflight(exp: Experiment, file: Path) -> None:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))
         except DesignError as exc:
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
-    signals = set(groups[0].observer.signals) if groups else {"depth", "yaw"}
+    from marinebench.rov_scenario import ROV_SIGNALS
+
+    signals = set(groups[0].observer.signals) if groups else set(ROV_SIGNALS)
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int"):
             bad = set(m.signals) - signals

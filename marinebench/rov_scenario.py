@@ -21,6 +21,8 @@ from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, Ris
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.scenario import stream_rngs
 
+ROV_SIGNALS = ("depth", "yaw", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs of the world
+
 
 def min_jerk(t: float, points: list[tuple[float, float]]) -> tuple[float, float]:
     """Reference through ``(time, value)`` waypoints: hold, then a minimum-jerk move to the next value
@@ -60,6 +62,28 @@ class RovSensors(BaseModel):
     yaw_noise_deg: float = Field(0.1, ge=0, description="[deg] white noise std of the yaw samples (assumed)")
 
 
+class CdoParams(BaseModel):
+    """Continuous-discrete observer of Tijjani eq. (38), one 3-state chain per DOF (baselines.md s.9).
+
+    x_hat' = A x_hat + B u + Delta_theta K* (w - C x_hat),  w' = x_hat_2 + K_w (w - x_hat_1),
+    w(t_k) = y(t_k) at each sample of that DOF's sensor (inter-sample output predictor).
+    K* = [3, 3, 1] (binomial; Table II's scalar K* has no stable literal reading, see baselines.md 9.4).
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    theta: float = Field(24.39, gt=0, description="theta (Table II)")
+    k_w: float = Field(0.1, description="K_w (Table II)")
+    k_star: tuple[float, float, float] = Field((3.0, 3.0, 1.0), description="K* (binomial resolution)")
+
+
+class EoParams(BaseModel):
+    """Extended high-gain observer (Chowdhury et al. 2022 form) on held samples; poles at -1/eps."""
+
+    model_config = ConfigDict(extra="forbid")
+    eps: float = Field(0.041, gt=0, description="[s] 1/theta: the CDO's nominal bandwidth")
+    a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
+
+
 class RovScenario(BaseModel):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
@@ -72,6 +96,8 @@ class RovScenario(BaseModel):
     yaw_ref_deg: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], yaw [deg]) waypoints")
     sensors: RovSensors = Field(default_factory=RovSensors)
     control_period: float = Field(0.01, gt=0, description="[s] controller period (assumed)")
+    cdo: CdoParams = Field(default_factory=CdoParams)
+    eo: EoParams = Field(default_factory=EoParams)
     damping_scale: float = Field(1.0, gt=0, description="plant damping multiplier (S2-C2: 1.9)")
     buoyancy_scale: float = Field(1.0, gt=0, description="plant net-buoyancy multiplier (S2-C2: 2.0)")
     payload: Payload | None = None
@@ -98,6 +124,9 @@ class ControllerSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["rise", "srise"]
+    feedback: Literal["measured", "cdo", "eo"] = Field(
+        "measured", description="measured: held samples and the true rates at the sample instants; cdo/eo: estimates"
+    )
     output_scale: float = Field(
         1.0, gt=0, description="multiplies the command before allocation; 9.81 reads the gains as producing kgf "
         "(Leonard's thrusters are rated in kgf; the paper does not state the unit of tau)",
@@ -128,8 +157,14 @@ class RovWorld:
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.output_scale) for spec, idx in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
         self.control_every = round(sc.control_period / sc.dt)
-        self.x0 = np.zeros((B, 4))
+        # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
+        self.x0 = np.zeros((B, 4 + 6 + 2 + 6))
         self.x0[:, 0], self.x0[:, 1] = sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])
+        self.x0[:, 4], self.x0[:, 7] = self.x0[:, 0], self.x0[:, 1]  # CDO starts at the initial pose
+        self.x0[:, 10:12] = self.x0[:, 0:2]
+        self.x0[:, 12], self.x0[:, 15] = self.x0[:, 0], self.x0[:, 1]
+        self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
+        self.feedback = [spec.feedback for spec, _ in controllers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held true rates at the sample instants
         self.tau = np.zeros((B, 2))  # achieved thrust (after allocation and saturation)
@@ -151,28 +186,66 @@ class RovWorld:
                 f += np.array(p.force)
         return f
 
+    @staticmethod
+    def cdo_view(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """CDO estimates ``(B, 2 DOF, 3)`` and predictors ``(B, 2)`` (views into the state)."""
+        return x[:, 4:10].reshape(-1, 2, 3), x[:, 10:12]
+
+    @staticmethod
+    def eo_view(x: np.ndarray) -> np.ndarray:
+        return x[:, 12:18].reshape(-1, 2, 3)
+
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
+        _, w = self.cdo_view(x)
         for ch, every in enumerate(self.every):
             if k % every == 0:
                 self.y[:, ch] = x[:, ch] + self.noise[:, k, ch]
                 self.ydot[:, ch] = x[:, 2 + ch]
+                w[:, ch] = self.y[:, ch]  # the CDO's predictor restarts from each new sample
         if k % self.control_every == 0:
             ref, ref_dot = self.reference(t)
             tau = np.zeros_like(self.tau)
-            for ctrl, idx, scale in self.groups:
-                tau[idx] = scale * ctrl.command(ref - self.y[idx], ref_dot - self.ydot[idx], self.sc.control_period)
+            cdo, _ = self.cdo_view(x)
+            eo = self.eo_view(x)
+            for (ctrl, idx, scale), fb in zip(self.groups, self.feedback):
+                if fb == "measured":
+                    pos, vel = self.y[idx], self.ydot[idx]
+                else:
+                    est = cdo if fb == "cdo" else eo
+                    pos, vel = est[idx, :, 0], est[idx, :, 1]
+                tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
             _, self.tau = self.plant.allocate(tau)
+
+    def observers_derivative(self, x: np.ndarray) -> np.ndarray:
+        """CDO (eq. 38 with the predictor) and EO right-hand sides, per DOF."""
+        cdo, w = self.cdo_view(x)
+        eo = self.eo_view(x)
+        acc = self.tau / self.m_hat  # B u with the nominal inertia
+        c, p = self.sc.cdo, self.sc.eo
+        th = np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.k_star)
+        inn = (w - cdo[:, :, 0])[..., None]
+        d_cdo = np.stack([cdo[:, :, 1], cdo[:, :, 2] + acc, np.zeros_like(acc)], axis=2) + th * inn
+        d_w = cdo[:, :, 1] + c.k_w * (w - cdo[:, :, 0])
+        g = np.array([p.a[0] / p.eps, p.a[1] / p.eps**2, p.a[2] / p.eps**3])
+        inn_eo = (self.y - eo[:, :, 0])[..., None]
+        d_eo = np.stack([eo[:, :, 1], eo[:, :, 2] + acc, np.zeros_like(acc)], axis=2) + g * inn_eo
+        return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         b = self.sc.vessel.net_buoyancy * self.sc.buoyancy_scale
-        x_dot = self.plant.derivative(x, self.tau, self.loads(t, x), self.sc.damping_scale, b)
-        return x_dot, self.y, self.tau
+        plant = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.sc.damping_scale, b)
+        return np.concatenate([plant, self.observers_derivative(x)], axis=1), self.y, self.tau
 
     def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
-        return {"depth": x[:, 0], "yaw": x[:, 1], "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1]}
+        z, psi = x[:, 0], x[:, 1]
+        return {"depth": z, "yaw": psi, "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
+                "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi}
 
     def estimates(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         """The reference, so that 'est - truth' is the tracking error e1 = eta_d - eta."""
         ref, _ = self.reference(t)
         B = x.shape[0]
-        return {"depth": np.full(B, ref[0]), "yaw": np.full(B, ref[1])}
+        cdo, _ = self.cdo_view(x)
+        eo = self.eo_view(x)
+        return {"depth": np.full(B, ref[0]), "yaw": np.full(B, ref[1]),
+                "depth_cdo": cdo[:, 0, 0], "yaw_cdo": cdo[:, 1, 0], "depth_eo": eo[:, 0, 0], "yaw_eo": eo[:, 1, 0]}
