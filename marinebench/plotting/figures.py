@@ -12,7 +12,7 @@ import numpy as np
 
 from marinebench.config import Experiment, FigureSpec
 
-UNITS = {"u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²",
+UNITS = {"depth": "m", "yaw": "rad", "tau_depth": "N", "tau_yaw": "N m", "u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²",
          "x": "m", "y": "m", "psi": "rad", "b_x": "N", "b_y": "N", "b_n": "N m"}
 NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r",
          "x": "north x", "y": "east y", "psi": "heading ψ", "b_x": "bias b_N", "b_y": "bias b_E", "b_n": "bias b_ψ"}
@@ -42,15 +42,21 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
 
     for i, sig in enumerate(spec.signals):
         ax = axes[i * (2 if spec.error else 1)]
-        ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
         runs = [int(np.flatnonzero((run_variant == index[name]) & (run_seed == 0))[0]) for name in names]
-        for name, b in zip(names, runs):
-            ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=labels[name])
+        if sig in est:  # truth ("actual") and each variant's estimate (or reference)
+            ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
+            series = [truth[sig][:, ref]] + [est[sig][:, b] for b in runs]
+            for name, b in zip(names, runs):
+                ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=labels[name])
+                if spec.error:
+                    axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=labels[name])
             if spec.error:
-                axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=labels[name])
-        autoscale(ax, [truth[sig][:, ref]] + [est[sig][:, b] for b in runs])
-        if spec.error:
-            autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs])
+                autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs])
+        else:  # a world signal with no estimate (e.g. a control input): one curve per variant
+            series = [truth[sig][:, b] for b in runs]
+            for name, b in zip(names, runs):
+                ax.plot(t[mask], truth[sig][mask, b], lw=1.0, label=labels[name])
+        autoscale(ax, series)
         ax.set_ylabel(f"{NAMES.get(sig, sig)} [{UNITS.get(sig, '-')}]")
         ax.legend(loc="upper right", fontsize=7)
         if spec.error:
