@@ -25,7 +25,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.environment.waves import component_amplitudes, dnv_gamma
 from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
-from marinebench.scenario import stream_rngs
+from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.sensors.notch import Biquad, tustin_notch
 
@@ -107,29 +107,21 @@ class DpInitial(BaseModel):
     bias: Vec3 = Field((0.0, 0.0, 0.0), description="slowly varying bias (current) load, NED [N, N, N m]")
 
 
-class DpScenario(BaseModel):
+class DpScenario(ScenarioBase):
     """A DP station-keeping world (Torben et al.)."""
 
-    model_config = ConfigDict(extra="forbid")
     kind: Literal["dp_supply"] = "dp_supply"
-    name: str = Field(..., min_length=1)
-    description: str = ""
     vessel: SupplyVesselParams = Field(default_factory=SupplyVesselParams)
     initial: DpInitial = Field(default_factory=DpInitial)
     bias_rate: Vec3 = Field((0.0, 0.0, 0.0), description="constant drift of the bias load [N/s, N/s, N m/s]")
     events: list[Event] = Field(default_factory=list)
     waves: Waves | None = Field(default_factory=Waves)
     sensors: DpSensors = Field(default_factory=DpSensors)
-    horizon: float = Field(..., gt=0)
-    dt: float = Field(0.05, gt=0)
+    dt: float = Field(0.05, gt=0, description="integration and control step [s] (Torben: 0.05 s)")
 
     @model_validator(mode="after")
-    def _steps(self):
-        if self.dt > self.horizon:
-            raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
-        ratio = self.sensors.ts / self.dt
-        if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f"sensors.ts={self.sensors.ts} must be a multiple of dt={self.dt}")
+    def _sensor_grid(self):
+        self.require_multiple_of_dt(self.sensors.ts, "sensors.ts")
         return self
 
     # per-run world parameters a variant may override (``variants[].world``)

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
-from marinebench.scenario import stream_rngs
+from marinebench.scenario import ScenarioBase, stream_rngs
 
 ROV_SIGNALS = ("depth", "yaw", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs of the world
 
@@ -84,13 +84,10 @@ class EoParams(BaseModel):
     a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
 
 
-class RovScenario(BaseModel):
+class RovScenario(ScenarioBase):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
-    model_config = ConfigDict(extra="forbid")
     kind: Literal["rov_tracking"] = "rov_tracking"
-    name: str = Field(..., min_length=1)
-    description: str = ""
     vessel: LeonardLikeParams = Field(default_factory=LeonardLikeParams)
     depth_ref: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], depth [m]) waypoints")
     yaw_ref_deg: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], yaw [deg]) waypoints")
@@ -102,20 +99,15 @@ class RovScenario(BaseModel):
     buoyancy_scale: float = Field(1.0, gt=0, description="plant net-buoyancy multiplier (S2-C2: 2.0)")
     payload: Payload | None = None
     pushes: list[Push] = Field(default_factory=list)
-    horizon: float = Field(..., gt=0)
-    dt: float = Field(0.002, gt=0)
+    dt: float = Field(0.002, gt=0, description="integration step [s]")
 
     PER_RUN: ClassVar[tuple[str, ...]] = ()
 
     @model_validator(mode="after")
-    def _periods(self):
-        for name in ("depth_period", "attitude_period"):
-            r = getattr(self.sensors, name) / self.dt
-            if abs(r - round(r)) > 1e-9:
-                raise ValueError(f"sensors.{name} must be a multiple of dt={self.dt}")
-        r = self.control_period / self.dt
-        if abs(r - round(r)) > 1e-9:
-            raise ValueError(f"control_period must be a multiple of dt={self.dt}")
+    def _sample_grid(self):
+        self.require_multiple_of_dt(self.sensors.depth_period, "sensors.depth_period")
+        self.require_multiple_of_dt(self.sensors.attitude_period, "sensors.attitude_period")
+        self.require_multiple_of_dt(self.control_period, "control_period")
         return self
 
 

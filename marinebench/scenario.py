@@ -48,26 +48,37 @@ class Sensors(BaseModel):
     position_noise: Noise = Field(default_factory=NoNoise, description="noise on the measured x, y")
 
 
-class Scenario(BaseModel):
-    """An open-loop ASV world (Bejarano et al. Sec. IV)."""
+class ScenarioBase(BaseModel):
+    """What every world has: a name, a horizon and the engine step (with the checks they share)."""
 
     model_config = ConfigDict(extra="forbid")
-    kind: Literal["open_loop_asv"] = "open_loop_asv"
     name: str = Field(..., min_length=1)
     description: str = ""
+    horizon: float = Field(..., gt=0, description="simulated time [s]")
+    dt: float = Field(..., gt=0, description="integration step [s]")
+
+    @model_validator(mode="after")
+    def _dt_below_horizon(self) -> ScenarioBase:
+        if self.dt > self.horizon:
+            raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
+        return self
+
+    def require_multiple_of_dt(self, period: float, key: str) -> None:
+        """Sampled components must tick on the engine's step grid."""
+        ratio = period / self.dt
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError(f"{key}={period} must be a multiple of dt={self.dt}")
+
+
+class Scenario(ScenarioBase):
+    """An open-loop ASV world (Bejarano et al. Sec. IV)."""
+
+    kind: Literal["open_loop_asv"] = "open_loop_asv"
     vessel: CyberShip2Params = Field(default_factory=CyberShip2Params)
     initial: Initial = Field(default_factory=Initial)
     inputs: Inputs = Field(default_factory=Inputs)
     disturbances: Disturbances = Field(default_factory=Disturbances)
     sensors: Sensors = Field(default_factory=Sensors)
-    horizon: float = Field(..., gt=0, description="simulated time [s]")
-    dt: float = Field(..., gt=0, description="integration step [s]")
-
-    @model_validator(mode="after")
-    def _dt_below_horizon(self) -> Scenario:
-        if self.dt > self.horizon:
-            raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
-        return self
 
 
 def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Generator]:

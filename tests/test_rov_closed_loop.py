@@ -81,3 +81,17 @@ def test_cdo_feedback_rescues_srise_on_sampled_sensors(tmp_path):
     assert m["srise", "depth", "rmse"] > 0.3
     assert m["cdo_srise", "depth", "rmse"] < 0.01 and m["cdo_srise", "yaw", "rmse"] < np.deg2rad(1.5)
 
+
+
+def test_every_scenario_kind_shares_the_step_checks():
+    from pydantic import ValidationError
+
+    from marinebench.dp_scenario import DpScenario
+
+    common = {"name": "x", "depth_ref": [(0, 0.0)], "yaw_ref_deg": [(0, 0.0)]}
+    with pytest.raises(ValidationError, match="exceeds horizon"):
+        RovScenario(**common, horizon=0.001, dt=0.002)
+    with pytest.raises(ValidationError, match="control_period=0.003 must be a multiple"):
+        RovScenario(**common, horizon=1, control_period=0.003)
+    with pytest.raises(ValidationError, match="sensors.ts=0.07 must be a multiple"):
+        DpScenario(name="d", horizon=10, sensors={"ts": 0.07})
