@@ -54,6 +54,9 @@ class Variant(BaseModel):
         default_factory=dict, description="per-run world parameters (e.g. gnss_sigma for dp_supply scenarios)"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
+    scenarios: list[str] | None = Field(
+        None, description="multi-scenario experiments: the scenarios this variant runs on (default: all)"
+    )
 
     @model_validator(mode="after")
     def _one_subject(self) -> Variant:
@@ -130,7 +133,19 @@ class PaperValues(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     source: str = Field(..., description="citation, e.g. 'Bejarano et al., Table IV'")
-    values: dict[str, dict[str, float]] = Field(default_factory=dict, description="variant -> signal -> value")
+    values: dict[str, dict[str, float]] = Field(
+        default_factory=dict,
+        description="variant -> signal -> value; multi-scenario experiments: variant -> 'scenario/metric/signal' -> value",
+    )
+    units: dict[str, str] = Field(default_factory=dict, description="'metric/signal' -> the unit the paper reports in")
+
+
+class Display(BaseModel):
+    """How a table shows one metric of one signal: ``value * scale`` in ``unit``."""
+
+    model_config = ConfigDict(extra="forbid")
+    scale: float = Field(1.0, gt=0)
+    unit: str = ""
 
 
 class TableSpec(BaseModel):
@@ -140,6 +155,9 @@ class TableSpec(BaseModel):
     metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
     signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
     paper: PaperValues | None = None
+    display: dict[str, Display] = Field(
+        default_factory=dict, description="'metric/signal' -> scale and unit for the table (e.g. rmse/depth: cm)"
+    )
 
 
 class FigureSpec(BaseModel):
@@ -150,7 +168,8 @@ class FigureSpec(BaseModel):
     file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
     title: str = ""
     signals: list[str]
-    variants: list[str] | None = Field(None, description="default: all variants")
+    variants: list[str] | None = Field(None, description="default: all variants (of this scenario)")
+    scenario: str | None = Field(None, description="multi-scenario experiments: the scenario shown (default: the first)")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
     t_range: tuple[float, float] | None = None
     ylim_after: float | None = Field(
@@ -210,7 +229,11 @@ class Experiment(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(..., pattern=NAME)
     description: str = ""
-    scenario: AnyScenario
+    scenario: AnyScenario | None = Field(None, description="the world (a file path, or {from: file, overrides})")
+    scenarios: dict[str, AnyScenario] | None = Field(
+        None, description="several named worlds instead of one (e.g. Tijjani S1, S2-C1, ...); each variant runs on "
+        "the scenarios it lists (default all); metrics.csv keeps them apart in its scenario column",
+    )
     seed: int = Field(2024, ge=0, description="root seed; run seeds derive from (seed, seed index)")
     seeds: int = Field(5, ge=1, le=10000, description="Monte-Carlo runs per variant")
     variants: list[Variant] = Field(..., min_length=1)
@@ -228,6 +251,54 @@ class Experiment(BaseModel):
 
     @model_validator(mode="after")
     def _cross_references(self) -> Experiment:
+        if (self.scenario is None) == (self.scenarios is None):
+            raise ValueError("give exactly one of 'scenario' or 'scenarios'")
+        if self.scenarios is not None:
+            return self._check_study()
+        return self._check_single()
+
+    def _check_study(self) -> Experiment:
+        """A multi-scenario experiment: check the scenario references, then each part as a single experiment."""
+        if not self.scenarios:
+            raise ValueError("'scenarios' is empty")
+        for i, v in enumerate(self.variants):
+            unknown = set(v.scenarios or []) - set(self.scenarios)
+            if unknown:
+                raise ValueError(f"variant '{v.name}' names unknown scenarios {sorted(unknown)}")
+        for f in self.figures:
+            if f.scenario is not None and f.scenario not in self.scenarios:
+                raise ValueError(f"figure {f.file} names unknown scenario '{f.scenario}'")
+        if self.sweep is not None:
+            raise ValueError("sweeps need a single 'scenario'")
+        for name in self.scenarios:
+            part = self.part(name)
+            if not part.variants:
+                raise ValueError(f"no variant runs on scenario '{name}'")
+            part._check_single()
+        return self
+
+    @property
+    def scenario_names(self) -> list[str]:
+        return list(self.scenarios) if self.scenarios is not None else [self.scenario.name]
+
+    def part(self, name: str) -> Experiment:
+        """The single-scenario experiment of one named scenario: its variants, figures and table."""
+        if self.scenarios is None:
+            return self
+        first = next(iter(self.scenarios))
+        sc = self.scenarios[name].model_copy(update={"name": name})
+        variants = [v for v in self.variants if v.scenarios is None or name in v.scenarios]
+        keep = {v.name for v in variants}
+        figures = [f.model_copy(update={"variants": [n for n in f.variants or [v.name for v in variants] if n in keep]})
+                   for f in self.figures if (f.scenario or first) == name]
+        table = self.table
+        if table is not None and table.paper is not None:
+            paper = table.paper.model_copy(update={"values": {k: v for k, v in table.paper.values.items() if k in keep}})
+            table = table.model_copy(update={"paper": paper})
+        return self.model_copy(update={"scenario": sc, "scenarios": None, "variants": variants, "figures": figures,
+                                       "table": table})
+
+    def _check_single(self) -> Experiment:
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
@@ -349,6 +420,23 @@ def apply_set(doc: dict, assignment: str) -> None:
             node = node[idx]
 
 
+def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) -> Any:
+    """Replace a scenario reference (``file`` or ``{from: file, overrides...}``) by the merged document."""
+    if not (isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen)):
+        return scen
+    ref = scen if isinstance(scen, str) else scen["from"]
+    overrides = {} if isinstance(scen, str) else {k: v for k, v in scen.items() if k != "from"}
+    if not isinstance(ref, str):
+        raise ConfigError(path, f"{key}.from", "expected a file path")
+    spath = (path.parent / ref).resolve()
+    if not spath.exists():
+        raise ConfigError(path, key, f"scenario file not found: {ref}")
+    origins[key] = spath
+    for dotted in _leaf_paths(overrides, key):
+        origins["override " + dotted] = path
+    return _deep_merge(_read_yaml(spath), overrides)
+
+
 def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None) -> tuple[dict, dict[str, Path]]:
     """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins)."""
     doc = _read_yaml(path)
@@ -359,19 +447,11 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
         sets = list(profiles[profile]) + list(sets)
     origins = {"": path}
     doc.setdefault("name", path.stem)
-    scen = doc.get("scenario")
-    if isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen):
-        ref = scen if isinstance(scen, str) else scen["from"]
-        overrides = {} if isinstance(scen, str) else {k: v for k, v in scen.items() if k != "from"}
-        if not isinstance(ref, str):
-            raise ConfigError(path, "scenario.from", "expected a file path")
-        spath = (path.parent / ref).resolve()
-        if not spath.exists():
-            raise ConfigError(path, "scenario", f"scenario file not found: {ref}")
-        doc["scenario"] = _deep_merge(_read_yaml(spath), overrides)
-        origins["scenario"] = spath
-        for dotted in _leaf_paths(overrides, "scenario"):
-            origins["override " + dotted] = path
+    if "scenario" in doc:
+        doc["scenario"] = _inline_scenario(doc["scenario"], path, "scenario", origins)
+    if isinstance(doc.get("scenarios"), dict):
+        for name, scen in doc["scenarios"].items():
+            doc["scenarios"][name] = _inline_scenario(scen, path, f"scenarios.{name}", origins)
     for s in sets:
         apply_set(doc, s)
         origins["--set " + s.split("=", 1)[0].strip()] = Path("--set")
@@ -388,7 +468,10 @@ def _loc(loc: tuple) -> str:
 def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -> ConfigError:
     err = exc.errors()[0]
     key = _loc(err["loc"])
-    file = origins.get("scenario") if key.startswith("scenario") and "scenario" in origins else origins[""]
+    file = origins[""]
+    for origin in sorted(o for o in origins if o.startswith("scenario")):  # the scenario file the key lives in
+        if key == origin or key.startswith(origin + "."):
+            file = origins[origin]
     for origin, source in origins.items():
         for tag in ("override ", "--set "):
             if origin.startswith(tag) and (key == origin[len(tag):] or key.startswith(origin[len(tag):] + ".")):
@@ -414,6 +497,15 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
 def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key."""
+    if exp.scenarios is None:
+        return _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
+    position = {v.name: i for i, v in enumerate(exp.variants)}
+    for name in exp.scenarios:
+        part = exp.part(name)
+        _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
+
+
+def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     from marinebench.errors import DesignError, StiffnessError
     from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of
     from marinebench.sim.engine import ObserverGroup, check_step
@@ -422,7 +514,7 @@ def preflight(exp: Experiment, file: Path) -> None:
     groups = []
     allowed = getattr(exp.scenario, "PER_RUN", ())
     closed_loop = exp.scenario.kind == "rov_tracking"
-    for i, v in enumerate(exp.variants):
+    for i, v in zip(positions, exp.variants):
         unknown = set(v.world) - set(allowed)
         if unknown:
             raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
@@ -449,7 +541,7 @@ def preflight(exp: Experiment, file: Path) -> None:
         try:
             check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
         except StiffnessError as exc:
-            raise ConfigError(file, "scenario.dt", str(exc)) from None
+            raise ConfigError(file, f"{key}.dt", str(exc)) from None
 
 
 def load_scenario(path: str | Path):

@@ -119,12 +119,32 @@ class ControllerSpec(BaseModel):
     feedback: Literal["measured", "cdo", "eo"] = Field(
         "measured", description="measured: held samples and the true rates at the sample instants; cdo/eo: estimates"
     )
-    output_scale: float = Field(
-        1.0, gt=0, description="multiplies the command before allocation; 9.81 reads the gains as producing kgf "
-        "(Leonard's thrusters are rated in kgf; the paper does not state the unit of tau)",
+    output_scale: float | tuple[float, float] | Literal["inertia"] = Field(
+        1.0, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
+        "and N m, 9.81 as kgf, 'inertia' as accelerations (tau = M_hat nu, the nominal inertia with added mass); "
+        "the paper does not state the unit of tau",
+    )
+
+    def scale(self, inertia: np.ndarray) -> np.ndarray:
+        """The (depth, yaw) output multipliers."""
+        if self.output_scale == "inertia":
+            return np.asarray(inertia, dtype=float)
+        s = np.broadcast_to(np.asarray(self.output_scale, dtype=float), (2,)).copy()
+        if (s <= 0).any():
+            raise ValueError("output_scale must be positive")
+        return s
+    disturbance_feedforward: bool = Field(
+        False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
+        "(x_hat_3) from the command, so the controller is fed the CDO's state and disturbance estimates",
     )
     depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
     yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
+
+    @model_validator(mode="after")
+    def _feedforward_needs_an_observer(self):
+        if self.disturbance_feedforward and self.feedback == "measured":
+            raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
+        return self
 
     def build(self, batch: int):
         if self.kind == "srise":
@@ -146,7 +166,8 @@ class RovWorld:
         n = int(np.ceil(sc.horizon / sc.dt)) + 2
         draws = np.array([g.standard_normal((n, 2)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
         self.noise = draws[where] * np.array([sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg)])
-        self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.output_scale) for spec, idx in controllers]
+        self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
+        self.feedforward = [spec.disturbance_feedforward for spec, _ in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
         self.control_every = round(sc.control_period / sc.dt)
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
@@ -199,13 +220,15 @@ class RovWorld:
             tau = np.zeros_like(self.tau)
             cdo, _ = self.cdo_view(x)
             eo = self.eo_view(x)
-            for (ctrl, idx, scale), fb in zip(self.groups, self.feedback):
+            for (ctrl, idx, scale), fb, ff in zip(self.groups, self.feedback, self.feedforward):
                 if fb == "measured":
                     pos, vel = self.y[idx], self.ydot[idx]
                 else:
                     est = cdo if fb == "cdo" else eo
                     pos, vel = est[idx, :, 0], est[idx, :, 1]
                 tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
+                if ff:
+                    tau[idx] -= self.m_hat * est[idx, :, 2]
             _, self.tau = self.plant.allocate(tau)
 
     def observers_derivative(self, x: np.ndarray) -> np.ndarray:

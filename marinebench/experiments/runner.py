@@ -81,6 +81,7 @@ class RunResult:
     wall_time: float
     max_rate: float
     designs: dict[str, dict] = field(default_factory=dict)
+    parts: dict[str, RunResult] = field(default_factory=dict)  # per scenario, for multi-scenario experiments
 
 
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
@@ -135,7 +136,29 @@ def run(
     on_start: Callable[[int], None] | None = None,
     traces: bool = True,
 ) -> RunResult:
-    """Design, check the step, simulate and reduce to tidy metrics."""
+    """Design, check the step, simulate and reduce to tidy metrics; a multi-scenario experiment runs each
+    scenario's variants as one batch and stacks the metrics (``parts`` keeps each scenario's result)."""
+    if exp.scenarios is None:
+        return _run_single(exp, progress, on_start, traces)
+    parts = {name: exp.part(name) for name in exp.scenarios}
+    if on_start is not None:
+        on_start(sum(round(p.scenario.horizon / p.scenario.dt) for p in parts.values()))
+    done = {name: _run_single(p, progress, None, traces) for name, p in parts.items()}
+    metrics = pd.concat([r.metrics for r in done.values()], ignore_index=True)
+    return RunResult(
+        exp, metrics, summarise(metrics), (np.zeros(0), {}, {}),
+        np.concatenate([r.run_variant for r in done.values()]), np.concatenate([r.run_seed for r in done.values()]),
+        sum(r.wall_time for r in done.values()), max(r.max_rate for r in done.values()),
+        {name: r.designs for name, r in done.items()}, done,
+    )
+
+
+def _run_single(
+    exp: Experiment,
+    progress: Callable[[int], None] | None,
+    on_start: Callable[[int], None] | None,
+    traces: bool,
+) -> RunResult:
     V, S = len(exp.variants), exp.seeds
     run_variant = np.repeat(np.arange(V), S)
     run_seed = np.tile(np.arange(S), V)
@@ -200,10 +223,11 @@ def run(
 
 
 def summarise(metrics: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
-    """Mean and CI over seeds per (variant, signal, metric), diverged runs excluded and counted."""
+    """Mean and CI over seeds per (scenario, variant, signal, metric), diverged runs excluded and counted."""
     out = []
-    for (variant, signal, metric), g in metrics.groupby(["variant", "signal", "metric"], sort=False):
+    keys = ["scenario", "variant", "signal", "metric"]
+    for key, g in metrics.groupby(keys, sort=False):
         ok = g[g["status"] == "ok"]["value"].to_numpy()
         m, lo, hi = mean_ci(ok, level)
-        out.append((variant, signal, metric, m, lo, hi, int(ok.size), int((g["status"] != "ok").sum())))
-    return pd.DataFrame(out, columns=["variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
+        out.append((*key, m, lo, hi, int(ok.size), int((g["status"] != "ok").sum())))
+    return pd.DataFrame(out, columns=[*keys, "mean", "ci_low", "ci_high", "n", "n_diverged"])

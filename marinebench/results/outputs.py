@@ -25,6 +25,12 @@ STANDARD_ASSUMPTIONS = [
 ]
 
 
+def _steps(worlds: dict) -> dict:
+    """dt, horizon and steps of the world (or of each named world)."""
+    info = {name: {"dt": sc.dt, "horizon": sc.horizon, "steps": round(sc.horizon / sc.dt)} for name, sc in worlds.items()}
+    return next(iter(info.values())) if len(info) == 1 else {"scenarios": info}
+
+
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Path:
     exp = result.experiment
     with atomic_directory(out_dir) as tmp:
@@ -35,9 +41,11 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
         (tmp / "table.md").write_text(markdown_table(exp, result.summary))
         figdir = tmp / "figures"
         figdir.mkdir()
-        t, truth, est = result.traces
-        for spec in exp.figures:
-            timeseries(exp, spec, t, truth, est, result.run_variant, result.run_seed, figdir / spec.file)
+        for part in result.parts.values() or [result]:
+            t, truth, est = part.traces
+            for spec in part.experiment.figures:
+                timeseries(part.experiment, spec, t, truth, est, part.run_variant, part.run_seed, figdir / spec.file)
+        worlds = {name: exp.part(name).scenario for name in exp.scenario_names}
         (tmp / "manifest.json").write_text(
             manifest(
                 experiment=exp.name,
@@ -45,10 +53,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
                 seed=exp.seed,
                 seeds=exp.seeds,
                 runs=len(result.run_seed),
-                diverged_runs=int((result.metrics.groupby(["variant", "seed"])["status"].first() != "ok").sum()),
-                dt=exp.scenario.dt,
-                horizon=exp.scenario.horizon,
-                steps=round(exp.scenario.horizon / exp.scenario.dt),
+                diverged_runs=int((result.metrics.groupby(["scenario", "variant", "seed"])["status"].first() != "ok").sum()),
+                **_steps(worlds),
                 max_observer_rate=result.max_rate,
                 wall_time_s=round(result.wall_time, 3),
                 assumptions=STANDARD_ASSUMPTIONS + list(exp.assumptions),

@@ -27,7 +27,67 @@ def fmt(x: float) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3g}"
 
 
+def _cell(r) -> str:
+    cell = fmt(r["mean"])
+    if not math.isnan(r["ci_low"]):
+        cell += f" [{fmt(r['ci_low'])}, {fmt(r['ci_high'])}]"
+    if r["n_diverged"]:
+        cell += f" ({int(r['n_diverged'])} diverged)"
+    return cell
+
+
+def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
+    """Multi-scenario layout (Tijjani Table III): a row per (metric, signal, scenario), a column per variant,
+    each followed by the paper's value when given."""
+    spec = exp.table
+    names = spec.metrics or [spec.metric] if spec is not None else [exp.metrics[0].label]
+    signals = spec.signals if spec is not None else ["depth", "yaw"]
+    paper = spec.paper if spec is not None else None
+    display = spec.display if spec is not None else {}
+    s = summary.set_index(["scenario", "variant", "signal", "metric"])
+    header = ["index", "scenario"]
+    for v in exp.variants:
+        header.append(f"{v.label or v.name} ours")
+        if paper is not None:
+            header.append(f"{v.label or v.name} paper")
+    lines = [f"## {spec.title if spec else exp.name}", ""]
+    lines.append("Ours: " + "; ".join(_window(exp.part(exp.scenario_names[0]), n) for n in names)
+                 + f". Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; root seed {exp.seed}; "
+                 "'–' where a variant does not run on a scenario.")
+    if paper is not None:
+        lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
+                     "not computed" + (" (paper units: " + ", ".join(f"{k} in {u}" for k, u in paper.units.items()) + ")"
+                                       if paper.units else "") + ".")
+    lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for name in names:
+        for sig in signals:
+            d = display.get(f"{name}/{sig}")
+            label = f"{name} {sig}" + (f" [{d.unit}]" if d and d.unit else "")
+            for scen in exp.scenario_names:
+                row = [label, scen]
+                for v in exp.variants:
+                    key = (scen, v.name, sig, name)
+                    if key in s.index:
+                        r = s.loc[key].copy()
+                        if d is not None:
+                            r[["mean", "ci_low", "ci_high"]] = r[["mean", "ci_low", "ci_high"]] * d.scale
+                        row.append(_cell(r))
+                    else:
+                        row.append("–")
+                    if paper is not None:
+                        row.append(fmt(paper.values.get(v.name, {}).get(f"{scen}/{name}/{sig}", float("nan"))))
+                lines.append("| " + " | ".join(row) + " |")
+    lines += ["", "Variants:", ""]
+    for v in exp.variants:
+        where = ", ".join(v.scenarios or exp.scenario_names)
+        lines.append(f"- `{v.name}` ({where}): " + ", ".join(
+            f"{k}={val}" for k, val in (v.observer or v.controller).model_dump().items() if val is not None))
+    return "\n".join(lines) + "\n"
+
+
 def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
+    if exp.scenarios is not None:
+        return study_table(exp, summary)
     spec = exp.table
     if spec is None:
         first = exp.metrics[0]
@@ -59,12 +119,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
         for name in names:
             for sig in signals:
                 if (v.name, sig, name) in s.index:
-                    r = s.loc[(v.name, sig, name)]
-                    cell = fmt(r["mean"])
-                    if not math.isnan(r["ci_low"]):
-                        cell += f" [{fmt(r['ci_low'])}, {fmt(r['ci_high'])}]"
-                    if r["n_diverged"]:
-                        cell += f" ({int(r['n_diverged'])} diverged)"
+                    cell = _cell(s.loc[(v.name, sig, name)])
                 else:
                     cell = "n/a"
                 row.append(cell)
