@@ -21,11 +21,11 @@ from marinebench.errors import ConfigError
 from marinebench.observers.bejarano import BejaranoTuning
 from marinebench.observers.dp import NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
-from marinebench.rov_scenario import ControllerSpec, RovScenario
+from marinebench.rov_scenario import ControllerSpec, RovObserverSpec, RovScenario
 from marinebench.scenario import Scenario
 
 ObserverTuning = Annotated[
-    BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning, Field(discriminator="kind")
+    BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning | RovObserverSpec, Field(discriminator="kind")
 ]
 
 
@@ -60,8 +60,10 @@ class Variant(BaseModel):
 
     @model_validator(mode="after")
     def _one_subject(self) -> Variant:
-        if (self.observer is None) == (self.controller is None):
-            raise ValueError("give exactly one of 'observer' or 'controller'")
+        if self.observer is None and self.controller is None:
+            raise ValueError("give an 'observer' or a 'controller'")
+        if self.controller is not None and self.observer is not None and self.observer.kind not in ("cdo", "eo"):
+            raise ValueError(f"a closed-loop variant can be observed through 'cdo' or 'eo', not '{self.observer.kind}'")
         return self
 
 
@@ -461,7 +463,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
     tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "rov_tracking", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int"}
+            "open_loop_asv", "dp_supply", "rov_tracking", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int"}
     return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 

@@ -21,7 +21,8 @@ from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, Ris
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.scenario import ScenarioBase, stream_rngs
 
-ROV_SIGNALS = ("depth", "yaw", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs of the world
+ROV_SIGNALS = ("depth", "yaw", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
+OBSERVE = {None: 0, "cdo": 1, "eo": 2}
 
 
 def min_jerk(t: float, points: list[tuple[float, float]]) -> tuple[float, float]:
@@ -60,6 +61,16 @@ class RovSensors(BaseModel):
     attitude_period: float = Field(0.04, gt=0, description="[s] IMU (Tijjani Table I)")
     depth_noise: float = Field(0.003, ge=0, description="[m] white noise std of the depth samples (assumed)")
     yaw_noise_deg: float = Field(0.1, ge=0, description="[deg] white noise std of the yaw samples (assumed)")
+    depth_rate: Literal["difference", "true"] = Field(
+        "difference", description="heave rate fed to measurement-fed controllers: 'difference' of the last two depth "
+        "samples (a pressure sensor gives no rate), or the true rate at the sample instant (idealised)",
+    )
+    yaw_rate: Literal["difference", "gyro", "true"] = Field(
+        "difference", description="yaw rate fed to measurement-fed controllers: 'difference' of the last two yaw samples "
+        "(the paper's controllers take only eta from the sensors, its CDO's output is C = [1 0 0]), the IMU 'gyro' "
+        "(true rate plus gyro noise), or the true rate (idealised)",
+    )
+    gyro_noise_dps: float = Field(0.05, ge=0, description="[deg/s] white noise std of the gyro yaw-rate samples (assumed)")
 
 
 class CdoParams(BaseModel):
@@ -84,6 +95,15 @@ class EoParams(BaseModel):
     a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
 
 
+class RovObserverSpec(BaseModel):
+    """Observe a closed-loop run through the CDO or the EO: the variant's ``depth`` and ``yaw`` signals become
+    that observer's estimates (error = estimate - truth), and ``depth_meas``/``yaw_meas`` its estimate at each
+    sample instant against the sample (the only observation error a pool experiment can measure)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["cdo", "eo"]
+
+
 class RovScenario(ScenarioBase):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
@@ -97,6 +117,9 @@ class RovScenario(ScenarioBase):
     eo: EoParams = Field(default_factory=EoParams)
     damping_scale: float = Field(1.0, gt=0, description="plant damping multiplier (S2-C2: 1.9)")
     buoyancy_scale: float = Field(1.0, gt=0, description="plant net-buoyancy multiplier (S2-C2: 2.0)")
+    estimate_offset: tuple[float, float] = Field(
+        (0.0, 0.0), description="initial error of the CDO and EO estimates [m, deg] (Fig. 2 shows convergence from one)"
+    )
     payload: Payload | None = None
     pushes: list[Push] = Field(default_factory=list)
     dt: float = Field(0.002, gt=0, description="integration step [s]")
@@ -158,14 +181,16 @@ class ControllerSpec(BaseModel):
 class RovWorld:
     """Batched closed loop; ``controllers`` are (ControllerSpec, run indices) groups."""
 
-    def __init__(self, sc: RovScenario, root_seed: int, seed_of_run: np.ndarray, controllers: list) -> None:
+    def __init__(self, sc: RovScenario, root_seed: int, seed_of_run: np.ndarray, controllers: list,
+                 observe: np.ndarray | None = None) -> None:
         self.sc, self.plant = sc, LeonardLike(sc.vessel)
         B = len(seed_of_run)
         seeds = sorted({int(s) for s in seed_of_run})
         where = np.searchsorted(seeds, seed_of_run)
         n = int(np.ceil(sc.horizon / sc.dt)) + 2
-        draws = np.array([g.standard_normal((n, 2)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
-        self.noise = draws[where] * np.array([sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg)])
+        draws = np.array([g.standard_normal((n, 3)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
+        std = [sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg), np.deg2rad(sc.sensors.gyro_noise_dps)]
+        self.noise = draws[where] * np.array(std)  # depth, yaw, yaw rate
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
         self.feedforward = [spec.disturbance_feedforward for spec, _ in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
@@ -173,13 +198,17 @@ class RovWorld:
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
         self.x0 = np.zeros((B, 4 + 6 + 2 + 6))
         self.x0[:, 0], self.x0[:, 1] = sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])
-        self.x0[:, 4], self.x0[:, 7] = self.x0[:, 0], self.x0[:, 1]  # CDO starts at the initial pose
-        self.x0[:, 10:12] = self.x0[:, 0:2]
-        self.x0[:, 12], self.x0[:, 15] = self.x0[:, 0], self.x0[:, 1]
+        offset = np.array([sc.estimate_offset[0], np.deg2rad(sc.estimate_offset[1])])
+        cdo, w = self.cdo_view(self.x0)
+        eo = self.eo_view(self.x0)
+        cdo[:, :, 0] = eo[:, :, 0] = self.x0[:, 0:2] + offset  # the observers start at the pose plus an offset
+        w[:] = self.x0[:, 0:2]
         self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
         self.feedback = [spec.feedback for spec, _ in controllers]
+        self.observe = np.zeros(B, dtype=int) if observe is None else np.asarray(observe)
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
-        self.ydot = np.zeros((B, 2))  # held true rates at the sample instants
+        self.ydot = np.zeros((B, 2))  # held rates: depth by difference (or true), yaw from the gyro
+        self.at_sample = np.repeat(self.x0[None, :, :2], 3, axis=0)  # reference, CDO, EO estimate at the last sample
         self.tau = np.zeros((B, 2))  # achieved thrust (after allocation and saturation)
         self.weight = sc.vessel.mass * 9.81
         self._yaw_pts = [(t, np.deg2rad(v)) for t, v in sc.yaw_ref_deg]
@@ -209,12 +238,23 @@ class RovWorld:
         return x[:, 12:18].reshape(-1, 2, 3)
 
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
-        _, w = self.cdo_view(x)
+        cdo, w = self.cdo_view(x)
+        ref = None
         for ch, every in enumerate(self.every):
             if k % every == 0:
-                self.y[:, ch] = x[:, ch] + self.noise[:, k, ch]
-                self.ydot[:, ch] = x[:, 2 + ch]
-                w[:, ch] = self.y[:, ch]  # the CDO's predictor restarts from each new sample
+                ref = self.reference(t)[0] if ref is None else ref
+                self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
+                self.at_sample[1, :, ch] = cdo[:, ch, 0]
+                self.at_sample[2, :, ch] = self.eo_view(x)[:, ch, 0]
+                y = x[:, ch] + self.noise[:, k, ch]
+                source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
+                if source == "difference":
+                    if k > 0:
+                        self.ydot[:, ch] = (y - self.y[:, ch]) / (every * self.sc.dt)
+                else:
+                    self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[:, k, 2] if source == "gyro" else 0.0)
+                self.y[:, ch] = y
+                w[:, ch] = y  # the CDO's predictor restarts from each new sample
         if k % self.control_every == 0:
             ref, ref_dot = self.reference(t)
             tau = np.zeros_like(self.tau)
@@ -254,13 +294,19 @@ class RovWorld:
     def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         z, psi = x[:, 0], x[:, 1]
         return {"depth": z, "yaw": psi, "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
+                "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
                 "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi}
 
     def estimates(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
-        """The reference, so that 'est - truth' is the tracking error e1 = eta_d - eta."""
+        """Per run, the reference (so that 'est - truth' is the tracking error e1 = eta_d - eta) or, for runs
+        observed through the CDO or the EO, that observer's estimate; ``*_meas`` the same at the last sample
+        instant (before the sample) against the sample; ``*_cdo``/``*_eo`` both observers in every run."""
         ref, _ = self.reference(t)
         B = x.shape[0]
         cdo, _ = self.cdo_view(x)
         eo = self.eo_view(x)
-        return {"depth": np.full(B, ref[0]), "yaw": np.full(B, ref[1]),
+        views = np.stack([np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0]])  # (3, B, 2)
+        pick = views[self.observe, np.arange(B)]
+        meas = self.at_sample[self.observe, np.arange(B)]
+        return {"depth": pick[:, 0], "yaw": pick[:, 1], "depth_meas": meas[:, 0], "yaw_meas": meas[:, 1],
                 "depth_cdo": cdo[:, 0, 0], "yaw_cdo": cdo[:, 1, 0], "depth_eo": eo[:, 0, 0], "yaw_eo": eo[:, 1, 0]}

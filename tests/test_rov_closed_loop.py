@@ -65,7 +65,7 @@ def test_closed_loop_needs_controllers_and_estimation_needs_observers(tmp_path):
     bad = bad.model_copy(update={"variants": [bad.variants[0].model_copy(update={"controller": None, "observer": {"kind": "liu_eso"}})]})
     with pytest.raises(ConfigError, match="needs a 'controller'"):
         preflight(bad, path)
-    with pytest.raises(ConfigError, match="exactly one of 'observer' or 'controller'"):
+    with pytest.raises(ConfigError, match="give an .observer. or a .controller."):
         experiment(tmp_path, [{"name": "x"}])
 
 
