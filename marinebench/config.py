@@ -127,7 +127,25 @@ class IntMetric(BaseModel):
         return self.name
 
 
-Metric = Annotated[ErrorMetric | JTotMetric | IntMetric, Field(discriminator="kind")]
+class RecoveryMetric(BaseModel):
+    """Time to recover from each of the scenario's pushes (rov_tracking): after a push on a DOF ends, the time
+    until the tracking error of that DOF is back within ``tol`` for good (largest over the pushes) [s]."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["recovery"] = "recovery"
+    name: str = Field("recovery", pattern=NAME)
+    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
+    tol: dict[str, float] = Field(
+        default_factory=lambda: {"depth": 0.01, "yaw": 0.0175}, description="recovered band [m, rad]"
+    )
+    window: float = Field(4.0, gt=0, description="[s] look this long after each push; reported if not recovered")
+
+    @property
+    def label(self) -> str:
+        return self.name
+
+
+Metric = Annotated[ErrorMetric | JTotMetric | IntMetric | RecoveryMetric, Field(discriminator="kind")]
 
 
 class PaperValues(BaseModel):
@@ -163,13 +181,15 @@ class TableSpec(BaseModel):
 
 
 class FigureSpec(BaseModel):
-    """Time series of truth and estimates (or errors) for seed 0 of the chosen variants."""
+    """Seed 0 of the chosen variants. ``timeseries``: truth and estimates (or errors) per signal.
+    ``tracking`` (closed loop, Tijjani Figs 3/5/7/9): a column per DOF with reference vs actual, tracking
+    errors and control inputs."""
 
     model_config = ConfigDict(extra="forbid")
-    kind: Literal["timeseries"] = "timeseries"
+    kind: Literal["timeseries", "tracking"] = "timeseries"
     file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
     title: str = ""
-    signals: list[str]
+    signals: list[str] = Field(default_factory=lambda: ["depth", "yaw"])
     variants: list[str] | None = Field(None, description="default: all variants (of this scenario)")
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario shown (default: the first)")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
@@ -309,7 +329,9 @@ class Experiment(BaseModel):
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"metric names must be unique: {kinds}")
         for m in self.metrics:
-            if m.kind == "int":
+            if m.kind in ("int", "recovery"):
+                if self.scenario.kind != "rov_tracking":
+                    raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
                 continue
             start, end = m.window(self.scenario.horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or self.scenario.horizon)
             if start >= end:
@@ -422,6 +444,22 @@ def apply_set(doc: dict, assignment: str) -> None:
             node = node[idx]
 
 
+def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A scenario file; ``from: other.yaml`` in it starts from that scenario (relative path) and overrides keys."""
+    doc = _read_yaml(path)
+    base = doc.pop("from", None)
+    if base is None:
+        return doc
+    if not isinstance(base, str):
+        raise ConfigError(path, "from", "expected a scenario file path")
+    bpath = (path.parent / base).resolve()
+    if bpath in _seen or bpath == path.resolve():
+        raise ConfigError(path, "from", f"circular scenario reference to {base}")
+    if not bpath.exists():
+        raise ConfigError(path, "from", f"scenario file not found: {base}")
+    return _deep_merge(read_scenario(bpath, (*_seen, path.resolve())), doc)
+
+
 def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) -> Any:
     """Replace a scenario reference (``file`` or ``{from: file, overrides...}``) by the merged document."""
     if not (isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen)):
@@ -436,7 +474,7 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
     origins[key] = spath
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path
-    return _deep_merge(_read_yaml(spath), overrides)
+    return _deep_merge(read_scenario(spath), overrides)
 
 
 def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None) -> tuple[dict, dict[str, Path]]:
@@ -463,7 +501,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
     tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "rov_tracking", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int"}
+            "open_loop_asv", "dp_supply", "rov_tracking", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
     return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 
@@ -533,9 +571,15 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
     from marinebench.rov_scenario import ROV_SIGNALS
 
+    if closed_loop:
+        try:
+            exp.scenario.cdo_design()
+        except DesignError as exc:
+            raise ConfigError(file, f"{key}.cdo", str(exc)) from None
+
     signals = set(groups[0].observer.signals) if groups else set(ROV_SIGNALS)
     for j, m in enumerate(exp.metrics):
-        if m.kind not in ("j_tot", "int"):
+        if m.kind not in ("j_tot", "int", "recovery"):
             bad = set(m.signals) - signals
             if bad:
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
@@ -551,7 +595,7 @@ def load_scenario(path: str | Path):
     from pydantic import TypeAdapter
 
     path = Path(path)
-    doc = _read_yaml(path)
+    doc = read_scenario(path)
     try:
         return TypeAdapter(AnyScenario).validate_python(doc)
     except ValidationError as exc:

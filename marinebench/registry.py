@@ -9,8 +9,9 @@ def _kinds_of(union) -> dict[str, str]:
     members = typing.get_args(typing.get_args(union)[0]) if typing.get_origin(union) is typing.Annotated else (union,)
     out = {}
     for m in members:
-        kind = m.model_fields["kind"].default
-        out[kind] = (m.__doc__ or "").strip().splitlines()[0]
+        doc = (m.__doc__ or "").strip().splitlines()[0]
+        for kind in typing.get_args(m.model_fields["kind"].annotation):  # Literal["a"] or Literal["a", "b"]
+            out[kind] = doc
     return out
 
 
@@ -19,14 +20,18 @@ def kinds() -> dict[str, dict[str, str]]:
     from marinebench.dp_scenario import DpScenario, Event
     from marinebench.environment.signals import Signal
     from marinebench.models.cybership2 import CyberShip2Params
+    from marinebench.models.rov import LeonardLikeParams
     from marinebench.models.supply import SupplyVesselParams
+    from marinebench.rov_scenario import RovScenario
     from marinebench.scenario import Scenario
     from marinebench.sensors.noise import Noise
 
     return {
-        "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario)},
-        "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyVesselParams)},
+        "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario), **_kinds_of(RovScenario)},
+        "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyVesselParams), **_kinds_of(LeonardLikeParams)},
         "observers": _kinds_of(ObserverTuning),
+        "controllers": {"rise": "RISE (Fischer et al. 2014), rov_tracking scenarios",
+                        "srise": "S+RISE (Tijjani eqs. 14-17); feedback: cdo makes it CDO-S+RISE"},
         "signals": _kinds_of(Signal),
         "noise": _kinds_of(Noise),
         "events": _kinds_of(Event),
@@ -35,5 +40,7 @@ def kinds() -> dict[str, dict[str, str]]:
             "rmse": "root mean square of est - truth over the window",
             "max_abs": "largest |est - truth| over the window (peaking)",
             "j_tot": "Torben eq. (50): integral of the bis-scaled state-error norm over a window",
+            "int": "Tijjani INT: integral of tau^2 from the time the robot reaches the reference",
+            "recovery": "time after each push until the tracking error is back within a band (Tijjani S3)",
         },
     }

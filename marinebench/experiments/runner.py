@@ -27,7 +27,7 @@ from marinebench.observers.liu_eso import LiuEsoObserver
 from marinebench.rov_scenario import OBSERVE, RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
-from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, Traces
+from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, RecoveryTime, Traces
 
 OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto"), "rov_tracking": ()}
 
@@ -101,7 +101,7 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
     """Designed gains and poles per variant, for the manifest."""
     from marinebench.observers import bejarano
 
-    out = {}
+    out = {"world_cdo": exp.scenario.cdo_design()} if exp.scenario.kind == "rov_tracking" else {}
     for v in exp.variants:
         o = v.observer
         if v.controller is not None:
@@ -175,6 +175,10 @@ def _run_single(
             recorders.append(NormIntegral(list(DP_SIGNALS), bis_scale(sc.vessel), {"psi"}, start, end, sc.dt))
         elif m.kind == "int":
             recorders.append(ControlEnergy(m.signals, [f"tau_{s}" for s in m.signals], [m.tol[s] for s in m.signals], sc.dt))
+        elif m.kind == "recovery":
+            ends = {s: [p.t_start + p.duration for p in sc.pushes if p.force[("depth", "yaw").index(s)] != 0]
+                    for s in m.signals}
+            recorders.append(RecoveryTime({s: e for s, e in ends.items() if e}, m.tol, m.window))
         else:
             recorders.append(ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon))
     trace_signals = sorted({s for g in groups for s in g.observer.signals})
@@ -191,7 +195,7 @@ def _run_single(
     for spec, rec in zip(exp.metrics, recorders):
         if spec.kind == "j_tot":
             per_metric.append((spec.label, {"z": rec.value}))
-        elif spec.kind == "int":
+        elif spec.kind in ("int", "recovery"):
             per_metric.append((spec.label, rec.value))
         else:
             per_metric.append((spec.label, rec.result(spec.kind)))

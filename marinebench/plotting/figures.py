@@ -29,7 +29,7 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
     if spec.t_range is not None:
         mask = (t >= spec.t_range[0]) & (t <= spec.t_range[1])
     ref = int(np.flatnonzero(run_seed == 0)[0])
-    after = spec.ylim_after if spec.ylim_after is not None else exp.metrics[0].t_start
+    after = spec.ylim_after if spec.ylim_after is not None else getattr(exp.metrics[0], "t_start", 0.0)
     late = (t >= after) if spec.t_range is None else (t >= after) & mask
 
     def autoscale(ax, series):
@@ -64,6 +64,38 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
+    """Closed-loop layout of Tijjani Figs 3/5/7/9: a column per DOF (signals), rows: the reference and each
+    variant's actual trajectory, the tracking errors, the control inputs ``tau_<signal>``. Yaw in degrees."""
+    names = spec.variants or [v.name for v in exp.variants]
+    index = {v.name: i for i, v in enumerate(exp.variants)}
+    labels = {v.name: v.label or v.name for v in exp.variants}
+    runs = [int(np.flatnonzero((run_variant == index[n]) & (run_seed == 0))[0]) for n in names]
+    mask = slice(None) if spec.t_range is None else (t >= spec.t_range[0]) & (t <= spec.t_range[1])
+    cols = len(spec.signals)
+    fig, axes = plt.subplots(3, cols, figsize=(5.5 * cols, 7.5), sharex=True, squeeze=False)
+    for j, sig in enumerate(spec.signals):
+        k = np.rad2deg(1.0) if sig == "yaw" else 1.0
+        unit = "deg" if sig == "yaw" else UNITS.get(sig, "-")
+        top, mid, bottom = axes[:, j]
+        top.plot(t[mask], k * est[sig][mask, runs[0]], "k--", lw=1.4, label="desired")
+        for name, b in zip(names, runs):
+            top.plot(t[mask], k * truth[sig][mask, b], lw=1.0, label=labels[name])
+            mid.plot(t[mask], k * (est[sig][mask, b] - truth[sig][mask, b]), lw=1.0, label=labels[name])
+            bottom.plot(t[mask], truth[f"tau_{sig}"][mask, b], lw=0.8, label=labels[name])
+        top.set_ylabel(f"{sig} [{unit}]")
+        mid.set_ylabel(f"error [{unit}]")
+        mid.axhline(0, color="k", lw=0.5)
+        bottom.set_ylabel(f"tau_{sig} [{UNITS.get(f'tau_{sig}', '-')}]")
+        bottom.set_xlabel("time [s]")
+        for ax in (top, mid, bottom):
+            ax.legend(loc="upper right", fontsize=7)
+    fig.suptitle(f"{spec.title or spec.file} (seed 0, {exp.scenario.vessel.kind})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -7,7 +7,7 @@ from pathlib import Path
 import yaml
 
 from marinebench.experiments.runner import RunResult
-from marinebench.plotting.figures import timeseries
+from marinebench.plotting.figures import timeseries, tracking
 from marinebench.results.tables import markdown_table
 from marinebench.results.writer import atomic_directory, manifest
 
@@ -44,7 +44,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
         for part in result.parts.values() or [result]:
             t, truth, est = part.traces
             for spec in part.experiment.figures:
-                timeseries(part.experiment, spec, t, truth, est, part.run_variant, part.run_seed, figdir / spec.file)
+                draw = tracking if spec.kind == "tracking" else timeseries
+                draw(part.experiment, spec, t, truth, est, part.run_variant, part.run_seed, figdir / spec.file)
         worlds = {name: exp.part(name).scenario for name in exp.scenario_names}
         (tmp / "manifest.json").write_text(
             manifest(

@@ -20,6 +20,8 @@ def _window(exp: Experiment, name: str) -> str:
         return f"{name}: ∫‖z_bis − ẑ_bis‖dt over t ∈ [{a:g}, {b:g}) s"
     if m.kind == "int":
         return f"{name}: ∫τ²dt from the first time the tracking error is within {m.tol}"
+    if m.kind == "recovery":
+        return f"{name}: largest time after a push until the tracking error stays within {m.tol} [s]"
     return f"{name}: {m.kind} of est − truth over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 

@@ -126,3 +126,30 @@ class ControlEnergy:
                 self.started[s] = np.zeros(truth[s].shape, dtype=bool)
             self.started[s] |= np.abs(est[s] - truth[s]) <= tol
             self.value[s] += np.where(self.started[s], truth[c] ** 2 * self.dt, 0.0)
+
+
+class RecoveryTime:
+    """Time to recover from each disturbance event, per signal: for an event ending at ``t_e``, the last time
+    in ``[t_e, t_e + window)`` at which ``|est - truth| > tol``, minus ``t_e`` (0 if the error never leaves the
+    band). Per run, the largest over the signal's events; ``window`` if it has not recovered by then."""
+
+    def __init__(self, events: dict[str, list[float]], tol: dict[str, float], window: float) -> None:
+        self.events, self.tol, self.window = events, tol, window
+        self.last_out: dict[str, list[np.ndarray]] = {}
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        for s, ends in self.events.items():
+            if s not in self.last_out:
+                self.last_out[s] = [np.full(truth[s].shape, np.nan) for _ in ends]
+            out = np.abs(est[s] - truth[s]) > self.tol[s]
+            for i, t_e in enumerate(ends):
+                if t_e <= t < t_e + self.window:
+                    self.last_out[s][i] = np.where(out, t, self.last_out[s][i])
+
+    @property
+    def value(self) -> dict[str, np.ndarray]:
+        out = {}
+        for s, ends in self.events.items():
+            times = [np.nan_to_num(last - t_e, nan=0.0) for last, t_e in zip(self.last_out.get(s, []), ends)]
+            out[s] = np.max(times, axis=0) if times else np.zeros(0)
+        return out

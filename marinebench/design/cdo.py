@@ -1,0 +1,103 @@
+"""Gains of Tijjani's continuous-discrete observer (CDO, eq. (38)): the LMIs (39)-(40) and the sampled-data check.
+
+Per DOF the CDO is a 3-state chain in high-gain coordinates (baselines.md s.9):
+
+    x_hat' = A x_hat + B u + Delta_theta K* (w - C x_hat),   w' = C (A x_hat + B u) + K_w (w - C x_hat),
+    w(t_k) = y(t_k),   A = [[0,1,0],[0,0,1],[0,0,0]],  C = [1 0 0],  Delta_theta = diag(theta, theta^2, theta^3).
+
+LMI (40), linear in (P, Y = P K*, S) with lambda > 0 given:
+
+    [[A^T P + P A - C^T Y^T - Y C,  Y C], [C^T Y^T, -S]]  <=  -lambda I,   P > 0, S > 0.
+
+As printed, (40) constrains K* only through feasibility (any Hurwitz A - K* C passes for a large enough S),
+so the design adds what makes it a design: a decay rate ``A_cl^T P + P A_cl <= -2 mu P`` (poles of the
+normalised observer left of -mu, i.e. left of -mu theta once scaled) and minimises trace(S), the bound on
+how much the prediction error w - C x_hat feeds the estimation error; P >= I fixes the scale.
+(39) reduces per DOF to the scalar K_w < theta K*_1 (the prediction error obeys z' = (K_w - theta K*_1) z).
+(41) is not reproduced (its printed entries contain typos, baselines.md 9.3); the sampled-data check
+replaces it: the error (e_x, e_y) flows with F = [[A - Delta K* C, Delta K*], [C A - K_w C, K_w]] over
+one sample period h and e_y resets to 0 at the sample, so the observer converges iff the spectral radius
+of the top-left 3x3 block of expm(F h) is below 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cvxpy as cp
+import numpy as np
+from scipy.linalg import expm
+
+from marinebench.errors import DesignError
+
+A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
+C = np.array([[1.0, 0.0, 0.0]])
+BINOMIAL = (3.0, 3.0, 1.0)
+
+
+@dataclass(frozen=True)
+class CdoDesign:
+    k_star: tuple[float, float, float]
+    P: np.ndarray | None
+    S: np.ndarray | None
+    lmi_max_eig: float | None  # largest eigenvalue of the LMI (40) matrix + lambda I at the solution (<= 0)
+    poles_normalised: np.ndarray  # eigenvalues of A - K* C (times theta: the continuous observer's poles)
+
+
+@lru_cache(maxsize=32)
+def design_lmi(mu: float = 1.0, lam: float = 1e-3) -> CdoDesign:
+    """Solve LMI (40) with the decay rate ``mu`` and minimal trace(S) (CLARABEL), then verify in numpy."""
+    P = cp.Variable((3, 3), symmetric=True)
+    Y = cp.Variable((3, 1))
+    S = cp.Variable((3, 3), symmetric=True)
+    lyap = A.T @ P + P @ A - C.T @ Y.T - Y @ C
+    big = cp.bmat([[lyap, Y @ C], [(Y @ C).T, -S]])
+    cons = [
+        (big + big.T) / 2 << -lam * np.eye(6),
+        (lyap + lyap.T) / 2 << -2 * mu * P,
+        P >> np.eye(3),
+        S >> 0,
+    ]
+    prob = cp.Problem(cp.Minimize(cp.trace(S)), cons)
+    try:
+        prob.solve(solver=cp.CLARABEL)
+    except cp.error.SolverError as exc:
+        raise DesignError(f"CDO LMI (40) with mu={mu}: solver failed ({exc})") from None
+    if prob.status not in ("optimal", "optimal_inaccurate") or P.value is None:
+        raise DesignError(f"CDO LMI (40) with mu={mu}: {prob.status}")
+    Pv, Yv, Sv = P.value, Y.value, S.value
+    k = np.linalg.solve(Pv, Yv).ravel()
+    return CdoDesign(tuple(float(v) for v in k), Pv, Sv, verify_lmi(k, Pv, Sv, lam, mu), np.linalg.eigvals(A - np.outer(k, C)))
+
+
+def verify_lmi(k_star: np.ndarray, P: np.ndarray, S: np.ndarray, lam: float, mu: float, tol: float = 1e-6) -> float:
+    """Re-check (40) and the decay rate in numpy for the recovered K*; raises DesignError if violated."""
+    k = np.asarray(k_star, dtype=float).reshape(3, 1)
+    a_cl = A - k @ C
+    lyap = a_cl.T @ P + P @ a_cl
+    big = np.block([[lyap, P @ k @ C], [(P @ k @ C).T, -S]])
+    worst = float(np.linalg.eigvalsh((big + big.T) / 2 + lam * np.eye(6)).max())
+    decay = float(np.linalg.eigvalsh((lyap + lyap.T) / 2 + 2 * mu * P).max())
+    scale = max(1.0, np.abs(P).max(), np.abs(S).max())
+    if worst > tol * scale or decay > tol * scale or np.linalg.eigvalsh(P).min() <= 0:
+        raise DesignError(f"CDO LMI (40) solution fails the numpy check (max eig {worst:.2e}, decay {decay:.2e})")
+    return worst
+
+
+def sampled_radius(k_star, theta: float, k_w: float, h: float) -> float:
+    """Spectral radius of the per-sample error map (the CDO converges iff < 1)."""
+    k = np.asarray(k_star, dtype=float)
+    lk = (np.array([theta, theta**2, theta**3]) * k).reshape(3, 1)
+    F = np.block([[A - lk @ C, lk], [C @ A - k_w * C, np.array([[k_w]])]])
+    return float(np.abs(np.linalg.eigvals(expm(F * h)[:3, :3])).max())
+
+
+def check(k_star, theta: float, k_w: float, h: float, dof: str) -> float:
+    """(39) and the sampled-data condition for one DOF; returns the spectral radius, raises DesignError."""
+    if not k_w < theta * k_star[0]:
+        raise DesignError(f"CDO {dof}: (39) needs K_w < theta K*_1 ({k_w} >= {theta * k_star[0]:.3g})")
+    rho = sampled_radius(k_star, theta, k_w, h)
+    if not rho < 1:
+        raise DesignError(f"CDO {dof}: the per-sample error map has spectral radius {rho:.3f} >= 1 at h = {h} s")
+    return rho
