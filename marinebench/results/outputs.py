@@ -11,18 +11,22 @@ from marinebench.plotting.figures import timeseries, tracking
 from marinebench.results.tables import markdown_table
 from marinebench.results.writer import atomic_directory, manifest
 
-STANDARD_ASSUMPTIONS = [
-    (
-        "Liu-Wang-Peng ESO reconstructed (LIU19 text unavailable): eps-scaled ESO, k=(3,3,1), linear corrections "
-        "by default (shared/reference/baselines.md s.1)"
-    ),
-    (
-        "Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
-        "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)"
-    ),
-    "true lumped disturbance sigma from eq. (6) with g = 0",
-    "plant and observers integrated jointly by fixed-step RK4; dt refused unless dt*|lambda|max <= stiffness_limit",
-]
+_RK4 = "plant and observers integrated jointly by fixed-step RK4; dt refused unless dt*|lambda|max <= stiffness_limit"
+STANDARD_ASSUMPTIONS = {
+    "open_loop_asv": [
+        ("Liu-Wang-Peng ESO reconstructed (LIU19 text unavailable): eps-scaled ESO, k=(3,3,1), linear corrections "
+        "by default (shared/reference/baselines.md s.1)"),
+        ("Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
+        "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)"),
+        "true lumped disturbance sigma from eq. (6) with g = 0",
+        _RK4,
+    ],
+    "dp_supply": [_RK4],
+    "rov_tracking": [
+        ("plant, CDO and EO integrated jointly by fixed-step RK4 at dt; sensors sampled and held, controllers "
+        "discrete at control_period, commands through the thrust allocation and saturation"),
+    ],
+}
 
 
 def _steps(worlds: dict) -> dict:
@@ -58,7 +62,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
                 **_steps(worlds),
                 max_observer_rate=result.max_rate,
                 wall_time_s=round(result.wall_time, 3),
-                assumptions=STANDARD_ASSUMPTIONS + list(exp.assumptions),
+                assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + list(exp.assumptions),
                 designs=result.designs,
             )
         )

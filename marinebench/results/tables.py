@@ -67,6 +67,9 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
             label = f"{name} {sig}" + (f" [{d.unit}]" if d and d.unit else "")
             for scen in exp.scenario_names:
                 row = [label, scen]
+                if not any((scen, v.name, sig, name) in s.index for v in exp.variants) and not any(
+                        f"{scen}/{name}/{sig}" in vals for vals in (paper.values.values() if paper else [])):
+                    continue  # the metric does not apply to this scenario (e.g. recovery without pushes)
                 for v in exp.variants:
                     key = (scen, v.name, sig, name)
                     if key in s.index:

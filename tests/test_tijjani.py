@@ -1,0 +1,142 @@
+"""Tijjani reproduction: CDO gain design, observers, scenario files, multi-scenario configs, short orderings."""
+
+import numpy as np
+import pytest
+import yaml
+
+from marinebench.config import load_experiment, load_scenario, preflight
+from marinebench.design.cdo import BINOMIAL, check, design_lmi, sampled_radius, verify_lmi
+from marinebench.errors import ConfigError, DesignError
+from marinebench.experiments.runner import run
+from marinebench.rov_scenario import ControllerSpec, min_jerk
+from marinebench.sim.recorders import RecoveryTime
+
+from .conftest import ROOT
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.35, 1.0])
+def test_cdo_lmi40_solution_is_verified_and_meets_its_decay_rate(mu):
+    d = design_lmi(mu)
+    assert d.lmi_max_eig <= 1e-6
+    assert d.poles_normalised.real.max() <= -mu + 1e-6
+    for h in (0.05, 0.04):  # depth and attitude sensor periods (Table I)
+        assert check(d.k_star, 24.39, 0.1, h, "dof") < 1
+    # the numpy re-check rejects a gain the LMI solution does not certify
+    with pytest.raises(DesignError, match="numpy check"):
+        verify_lmi(np.array(d.k_star) * 0.2, d.P, d.S, 1e-3, mu)
+
+
+def test_literal_table_ii_scalar_readings_fail_the_sampled_data_check():
+    """baselines.md 9.4: K* = 0.2 [3, 3, 1] for yaw (Table II's scalar) diverges per sample; binomial does not."""
+    assert sampled_radius(0.2 * np.array(BINOMIAL), 24.39, 0.1, 0.04) > 1
+    with pytest.raises(DesignError, match="spectral radius"):
+        check(0.2 * np.array(BINOMIAL), 24.39, 0.1, 0.04, "yaw")
+    with pytest.raises(DesignError, match=r"\(39\)"):
+        check((0.001, 1.0, 1.0), 24.39, 0.1, 0.04, "yaw")
+    assert sampled_radius(BINOMIAL, 24.39, 0.1, 0.05) < 0.75
+
+
+def write(tmp_path, doc, name="x.yaml"):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def observe_noiseless(tmp_path, **scenario):
+    ctrl = {"kind": "rise"}
+    doc = {"scenario": {"from": str(ROOT / "scenarios" / "rov_s1.yaml"), "horizon": 6.0, "estimate_offset": [0.05, 10.0],
+                        "sensors": {"depth_noise": 0.0, "yaw_noise_deg": 0.0}, **scenario},
+           "seeds": 1,
+           "variants": [{"name": "cdo", "controller": ctrl, "observer": {"kind": "cdo"}},
+                        {"name": "eo", "controller": ctrl, "observer": {"kind": "eo"}}],
+           "metrics": [{"kind": "max_abs", "name": "start", "t_start": 0.0, "t_end": 0.01, "signals": ["depth", "yaw"]},
+                       {"kind": "max_abs", "name": "late", "t_start": 4.0, "signals": ["depth", "yaw"]}]}
+    exp, _ = load_experiment(write(tmp_path, doc))
+    return run(exp, traces=False).metrics.set_index(["variant", "signal", "metric"])["value"]
+
+
+def test_cdo_and_eo_converge_on_a_noiseless_plant(tmp_path):
+    m = observe_noiseless(tmp_path, depth_ref=[[0, 0.1]], yaw_ref_deg=[[0, 20.0]])  # holding a pose
+    for obs in ("cdo", "eo"):
+        assert m[obs, "depth", "start"] > 0.04 and m[obs, "yaw", "start"] > np.deg2rad(9)
+        assert m[obs, "depth", "late"] < 1e-4 and m[obs, "yaw", "late"] < 1e-4
+
+
+def test_cdo_predictor_removes_the_lag_of_held_samples_while_moving(tmp_path):
+    """Noiseless samples while diving and turning (S1's first 6 s): the EO, fed the held samples, lags;
+    the CDO's inter-sample predictor keeps its error at least 10x smaller."""
+    m = observe_noiseless(tmp_path)
+    assert m["eo", "depth", "late"] > 1e-3 and m["eo", "yaw", "late"] > np.deg2rad(0.1)
+    assert m["cdo", "depth", "late"] < 0.1 * m["eo", "depth", "late"]
+    assert m["cdo", "yaw", "late"] < 0.1 * m["eo", "yaw", "late"]
+
+
+def test_scenario_files_place_the_events_where_the_paper_says():
+    s1 = load_scenario(ROOT / "scenarios" / "rov_s1.yaml")
+    c1 = load_scenario(ROOT / "scenarios" / "rov_s2_c1.yaml")
+    c2 = load_scenario(ROOT / "scenarios" / "rov_s2_c2.yaml")
+    s3 = load_scenario(ROOT / "scenarios" / "rov_s3.yaml")
+    assert c1.depth_ref == s1.depth_ref and c1.payload.weight_fraction == 0.04 and c1.payload.floor_depth == 0.25
+    assert (c2.damping_scale, c2.buoyancy_scale) == (1.9, 2.0) and c2.sensors == s1.sensors
+    depth_at = [min_jerk(p.t_start, s3.depth_ref)[0] for p in s3.pushes if p.force[0]]
+    yaw_at = [min_jerk(p.t_start, s3.yaw_ref_deg)[0] for p in s3.pushes if p.force[1]]
+    assert depth_at == pytest.approx([0.19, 0.30, 0.24, 0.20, 0.20, 0.20, 0.20], abs=0.01)  # (a) (b) (c) (d1-d4)
+    assert yaw_at == pytest.approx([60.0, 49.7, -60.0, -60.0], abs=1.0)  # (e) (f) (g1) (g2)
+    weight = s3.vessel.mass * 9.81
+    assert all(abs(max(p.force, key=abs)) == pytest.approx(0.25 * weight, rel=0.01) for p in s3.pushes if p.force[0])
+
+
+def test_circular_scenario_reference_is_a_config_error(tmp_path):
+    write(tmp_path, {"from": "b.yaml", "name": "a"}, "a.yaml")
+    write(tmp_path, {"from": "a.yaml", "name": "b"}, "b.yaml")
+    with pytest.raises(ConfigError, match="circular"):
+        load_scenario(tmp_path / "a.yaml")
+
+
+def test_recovery_time_counts_from_the_end_of_each_push():
+    rec = RecoveryTime({"depth": [1.0, 3.0]}, {"depth": 0.01}, window=1.5)
+    errors = {0.5: 0.0, 1.0: 0.05, 1.5: 0.02, 2.0: 0.005, 3.0: 0.0, 3.5: 0.0}
+    for k, (t, e) in enumerate(errors.items()):
+        rec.update(k, t, {"depth": np.array([0.0])}, {"depth": np.array([e])})
+    assert rec.value["depth"][0] == pytest.approx(0.5)  # out of the band until 1.5 s after the first push
+
+
+def test_feedforward_needs_an_observer():
+    with pytest.raises(ValueError, match="needs feedback"):
+        ControllerSpec(kind="srise", disturbance_feedforward=True)
+
+
+def test_multi_scenario_config_runs_each_variant_where_it_is_listed(tmp_path):
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", profile="quick")
+    assert exp.scenario_names == ["S1", "S2-C1", "S2-C2", "S3"]
+    assert [v.name for v in exp.part("S3").variants] == ["cdo_srise"]
+    assert exp.part("S2-C2").scenario.name == "S2-C2" and exp.part("S2-C2").scenario.damping_scale == 1.9
+    assert [f.file for f in exp.part("S3").figures] == ["fig9_s3.png"]
+    with pytest.raises(ConfigError, match=r"variants\.0\.scenarios|unknown scenarios"):
+        load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["variants.0.scenarios=[S9]"])
+    with pytest.raises(ConfigError) as bad:
+        exp2, _origins = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["scenarios.S3.cdo.theta=200"])
+        preflight(exp2, ROOT / "configs" / "tijjani_table3.yaml")
+    assert "scenarios.S3.cdo" in str(bad.value) and "spectral radius" in str(bad.value)
+
+
+@pytest.fixture(scope="module")
+def s1_short():
+    """The Table III controllers on S1, 20 s, one seed (the configs' quick horizon)."""
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["seeds=1", "scenarios.S1.horizon=20"])
+    return run(exp.part("S1"))
+
+
+def test_depth_rmse_ordering_rise_srise_cdo_srise_on_s1(s1_short):
+    m = s1_short.metrics.set_index(["variant", "signal", "metric"])["value"]
+    assert m["rise", "depth", "rmse"] > m["srise", "depth", "rmse"] > m["cdo_srise", "depth", "rmse"]
+
+
+def test_commands_respect_the_thruster_limits(s1_short):
+    _, truth, _ = s1_short.traces
+    from marinebench.models.rov import LeonardLike, LeonardLikeParams
+
+    limits = LeonardLike(LeonardLikeParams()).limits
+    assert np.abs(truth["tau_depth"]).max() <= limits[0] + 1e-9
+    assert np.abs(truth["tau_yaw"]).max() <= limits[1] + 1e-9
+    assert np.abs(truth["tau_depth"]).max() > 0.5 * limits[0]  # the limit is reached, so the check can bite
