@@ -75,7 +75,8 @@ def _world(d: Path) -> dict:
     if not path.exists():
         return {}
     doc = yaml.safe_load(path.read_text())
-    return {"scenario": doc.get("scenario"), "seed": doc.get("seed"), "metrics": doc.get("metrics")}
+    return {"scenario": doc.get("scenario"), "scenarios": doc.get("scenarios"), "seed": doc.get("seed"),
+            "metrics": doc.get("metrics")}
 
 
 def _diff_keys(a, b, prefix: str = "") -> list[str]:
@@ -184,12 +185,12 @@ def _fmt(x) -> str:
 
 def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
     lines = [f"### {title}: {headline(table)}", ""]
-    lines.append("| verdict | experiment | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|")
+    lines.append("| verdict | experiment | scenario | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
     icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
     for r in table.itertuples(index=False):
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
         ci = "–" if np.isnan(r.ci_low) else f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
-        lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.variant} | {r.signal} | {r.metric} | "
+        lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
                      f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
     return "\n".join(lines) + "\n"
