@@ -17,7 +17,7 @@ from typing import ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.scenario import ScenarioBase, stream_rngs
 
@@ -191,6 +191,10 @@ class ControllerSpec(BaseModel):
         False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
         "(x_hat_3) from the command, so the controller is fed the CDO's state and disturbance estimates",
     )
+    preset: Literal["subjugator", "table2_equivalent"] = Field(
+        "subjugator", description="RISE gains (Tijjani does not publish its own): SubjuGator's z/yaw entries, or "
+        "Table II's S+RISE gains at their small-error constants (baselines.md 5.2)",
+    )
     depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
     yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
 
@@ -204,8 +208,9 @@ class ControllerSpec(BaseModel):
         if self.kind == "srise":
             gains = [TABLE_II_DEPTH.model_copy(update=self.depth), TABLE_II_YAW.model_copy(update=self.yaw)]
             return SRise([SRiseGains.model_validate(g.model_dump()) for g in gains], batch)
-        depth = RiseGains.model_validate({**RiseGains().model_dump(), **self.depth})
-        yaw = RiseGains.model_validate({"alpha1": 4.0, "ks": 20.0, "alpha2": 0.05, "beta": 1.0, **self.yaw})
+        base = RISE_PRESETS[self.preset]
+        depth = RiseGains.model_validate({**base[0].model_dump(), **self.depth})
+        yaw = RiseGains.model_validate({**base[1].model_dump(), **self.yaw})
         return Rise([depth, yaw], batch)
 
 

@@ -140,3 +140,12 @@ def test_commands_respect_the_thruster_limits(s1_short):
     assert np.abs(truth["tau_depth"]).max() <= limits[0] + 1e-9
     assert np.abs(truth["tau_yaw"]).max() <= limits[1] + 1e-9
     assert np.abs(truth["tau_depth"]).max() > 0.5 * limits[0]  # the limit is reached, so the check can bite
+
+
+def test_table2_equivalent_rise_preset_is_srise_at_its_small_error_constants():
+    from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW
+
+    for srise, rise in zip((TABLE_II_DEPTH, TABLE_II_YAW), RISE_PRESETS["table2_equivalent"]):
+        assert rise.alpha1 == srise.alpha
+        assert rise.ks == pytest.approx(srise.k0 * srise.eps1 ** (srise.delta1 - 1), rel=5e-3)
+        assert rise.alpha2 == pytest.approx(srise.lambda0 * srise.eps3 ** (srise.delta2 - 1), rel=5e-3)

@@ -55,6 +55,15 @@ class RiseGains(BaseModel):
     beta: float = Field(0.45, ge=0)
 
 
+RISE_PRESETS = {
+    # SubjuGator z and yaw entries of Fischer et al.'s vehicle code (baselines.md 5.2), tau in N / N m.
+    "subjugator": (RiseGains(alpha1=5.0, ks=125.0, alpha2=0.3, beta=0.45), RiseGains(alpha1=4.0, ks=20.0, alpha2=0.05, beta=1.0)),
+    # Table II's S+RISE evaluated at its small-error constants: alpha1 = alpha, ks = k0 eps1^(delta1-1),
+    # alpha2 = lambda0 eps3^(delta2-1) (baselines.md 5.2), in Table II's units (use the S+RISE output_scale).
+    "table2_equivalent": (RiseGains(alpha1=16.5, ks=4.89, alpha2=0.919, beta=0.5), RiseGains(alpha1=1.1, ks=3.97, alpha2=0.140, beta=0.05)),
+}
+
+
 def _stack(gains: list[BaseModel], field: str) -> np.ndarray:
     return np.array([getattr(g, field) for g in gains])
 
