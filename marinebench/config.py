@@ -286,10 +286,10 @@ class Experiment(BaseModel):
         for i, v in enumerate(self.variants):
             unknown = set(v.scenarios or []) - set(self.scenarios)
             if unknown:
-                raise ValueError(f"variant '{v.name}' names unknown scenarios {sorted(unknown)}")
+                raise ValueError(f"variants.{i}.scenarios: unknown scenarios {sorted(unknown)} (have: {', '.join(self.scenarios)})")
         for f in self.figures:
             if f.scenario is not None and f.scenario not in self.scenarios:
-                raise ValueError(f"figure {f.file} names unknown scenario '{f.scenario}'")
+                raise ValueError(f"figures: {f.file} names unknown scenario '{f.scenario}' (have: {', '.join(self.scenarios)})")
         if self.sweep is not None:
             raise ValueError("sweeps need a single 'scenario'")
         for name in self.scenarios:
@@ -516,9 +516,12 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
         for tag in ("override ", "--set "):
             if origin.startswith(tag) and (key == origin[len(tag):] or key.startswith(origin[len(tag):] + ".")):
                 file = source
-    msg = err["msg"]
+    msg = err["msg"].removeprefix("Value error, ")
     if err["type"] == "extra_forbidden":
         msg = "unknown key"
+    where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
+    if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'
+        key, msg = where.groups()
     more = len(exc.errors()) - 1
     return ConfigError(file, key or "(top level)", msg + (f" (and {more} more)" if more else ""))
 

@@ -149,3 +149,15 @@ def test_table2_equivalent_rise_preset_is_srise_at_its_small_error_constants():
         assert rise.alpha1 == srise.alpha
         assert rise.ks == pytest.approx(srise.k0 * srise.eps1 ** (srise.delta1 - 1), rel=5e-3)
         assert rise.alpha2 == pytest.approx(srise.lambda0 * srise.eps3 ** (srise.delta2 - 1), rel=5e-3)
+
+
+def test_bad_multi_scenario_input_is_one_line_naming_file_and_key(tmp_path):
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "tijjani_table3.yaml"), "--out", str(tmp_path / "o"),
+                                   "--set", "variants[srise].scenarios=[S7]"])
+    assert res.exit_code == 2
+    assert "tijjani_table3.yaml: variants.1.scenarios: unknown scenarios ['S7']" in res.output
+    assert not (tmp_path / "o").exists()
