@@ -16,12 +16,14 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, model_validator
 
+from marinebench.controllers.spec import ControllerSpec
 from marinebench.dp_scenario import DpScenario
 from marinebench.errors import ConfigError
 from marinebench.observers.bejarano import BejaranoTuning
+from marinebench.observers.cdo import RovObserverSpec
 from marinebench.observers.dp import NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
-from marinebench.rov_scenario import ControllerSpec, RovObserverSpec, RovScenario
+from marinebench.rov_scenario import RovScenario
 from marinebench.scenario import Scenario
 
 ObserverTuning = Annotated[

@@ -1,12 +1,14 @@
 """ROV depth/yaw tracking world (Tijjani et al.): the Leonard-like ROV in closed loop.
 
-The controllers are part of the world: each run's controller (RISE or S+RISE, from its variant) runs
+The controllers are part of the world: each run's controller (RISE or S+RISE, ``controllers/spec.py``) runs
 every ``control_period`` on the held sensor samples (depth every 50 ms, attitude every 40 ms, Tijjani
-Table I) and its command goes through the thrust allocation and saturation. Velocity feedback for the
-measurement-fed controllers is the true rate sampled with each sensor and held (baselines.md s.5.3).
+Table I) or on the CDO/EO estimates (``observers/cdo.py``, integrated with the plant), and its command goes
+through the thrust allocation and saturation. Measurement-fed controllers get rates by differencing the
+samples (default), from a gyro, or the true rate (``sensors.depth_rate``, ``sensors.yaw_rate``).
 
 Truth signals ``depth``, ``yaw`` (and the achieved ``tau_depth``, ``tau_yaw``); the reference is exposed
-as the "estimate" of ``depth`` and ``yaw``, so the RMSE recorder gives the tracking RMSE of Table III.
+as the "estimate" of ``depth`` and ``yaw`` (or, for runs observed through the CDO or the EO, that
+observer's estimate), so the RMSE recorder gives the tracking RMSE of Table III.
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ from typing import ClassVar, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
+from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
 from marinebench.scenario import ScenarioBase, stream_rngs
 
 ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
@@ -73,53 +75,6 @@ class RovSensors(BaseModel):
     gyro_noise_dps: float = Field(0.05, ge=0, description="[deg/s] white noise std of the gyro yaw-rate samples (assumed)")
 
 
-class CdoParams(BaseModel):
-    """Continuous-discrete observer of Tijjani eq. (38), one 3-state chain per DOF (baselines.md s.9).
-
-    x_hat' = A x_hat + B u + Delta_theta K* (w - C x_hat),  w' = x_hat_2 + K_w (w - x_hat_1),
-    w(t_k) = y(t_k) at each sample of that DOF's sensor (inter-sample output predictor).
-    K*: Table II gives one scalar per DOF where the theory needs a 3-vector, and no literal reading is stable for
-    both DOFs (baselines.md 9.4). 'lmi' solves LMI (40) with a decay rate ``lmi_decay`` (design/cdo.py; the
-    paper: "the tuned parameters of the proposed observer were obtained based on LMI"); 'binomial' is
-    [3, 3, 1]; or give the vector.
-    """
-
-    model_config = ConfigDict(extra="forbid")
-    theta: float = Field(24.39, gt=0, description="theta (Table II)")
-    k_w: float = Field(0.1, description="K_w (Table II)")
-    k_star: Literal["lmi", "binomial"] | tuple[float, float, float] = Field("lmi", description="K* (see above)")
-    lmi_decay: float = Field(
-        0.35, gt=0, description="mu of the LMI design: normalised poles left of -mu (left of -mu theta in time). "
-        "0.35 minimises the larger of the two per-sample error radii (depth 50 ms, yaw 40 ms) over mu",
-    )
-
-    def gain(self) -> tuple[float, float, float]:
-        """The resolved K* (normalised, before Delta_theta)."""
-        from marinebench.design.cdo import BINOMIAL, design_lmi
-
-        if self.k_star == "lmi":
-            return design_lmi(self.lmi_decay).k_star
-        return BINOMIAL if self.k_star == "binomial" else self.k_star
-
-
-class EoParams(BaseModel):
-    """Extended high-gain observer (Chowdhury et al. 2022 form) on held samples; poles at -1/eps."""
-
-    model_config = ConfigDict(extra="forbid")
-    eps: float = Field(0.041, gt=0, description="[s] 1/theta: the CDO's nominal bandwidth")
-    a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
-
-
-class RovObserverSpec(BaseModel):
-    """CDO (eq. 38) or extended high-gain observer (EO) view of a closed-loop run (rov_tracking).
-
-    The variant's ``depth`` and ``yaw`` (and ``*_rate``) signals become that observer's estimates (error = estimate - truth), and ``depth_meas``/``yaw_meas`` its estimate at each
-    sample instant against the sample (the only observation error a pool experiment can measure)."""
-
-    model_config = ConfigDict(extra="forbid")
-    kind: Literal["cdo", "eo"]
-
-
 class RovScenario(ScenarioBase):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
@@ -163,55 +118,6 @@ class RovScenario(ScenarioBase):
         self.require_multiple_of_dt(self.sensors.attitude_period, "sensors.attitude_period")
         self.require_multiple_of_dt(self.control_period, "control_period")
         return self
-
-
-class ControllerSpec(BaseModel):
-    """The controller of a variant in a closed-loop (rov_tracking) scenario."""
-
-    model_config = ConfigDict(extra="forbid")
-    kind: Literal["rise", "srise"]
-    feedback: Literal["measured", "cdo", "eo"] = Field(
-        "measured", description="measured: held samples and the true rates at the sample instants; cdo/eo: estimates"
-    )
-    output_scale: float | tuple[float, float] | Literal["inertia"] = Field(
-        1.0, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
-        "and N m, 9.81 as kgf, 'inertia' as accelerations (tau = M_hat nu, the nominal inertia with added mass); "
-        "the paper does not state the unit of tau",
-    )
-
-    def scale(self, inertia: np.ndarray) -> np.ndarray:
-        """The (depth, yaw) output multipliers."""
-        if self.output_scale == "inertia":
-            return np.asarray(inertia, dtype=float)
-        s = np.broadcast_to(np.asarray(self.output_scale, dtype=float), (2,)).copy()
-        if (s <= 0).any():
-            raise ValueError("output_scale must be positive")
-        return s
-    disturbance_feedforward: bool = Field(
-        False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
-        "(x_hat_3) from the command, so the controller is fed the CDO's state and disturbance estimates",
-    )
-    preset: Literal["subjugator", "table2_equivalent"] = Field(
-        "subjugator", description="RISE gains (Tijjani does not publish its own): SubjuGator's z/yaw entries, or "
-        "Table II's S+RISE gains at their small-error constants (baselines.md 5.2)",
-    )
-    depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
-    yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
-
-    @model_validator(mode="after")
-    def _feedforward_needs_an_observer(self):
-        if self.disturbance_feedforward and self.feedback == "measured":
-            raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
-        return self
-
-    def build(self, batch: int):
-        if self.kind == "srise":
-            gains = [TABLE_II_DEPTH.model_copy(update=self.depth), TABLE_II_YAW.model_copy(update=self.yaw)]
-            return SRise([SRiseGains.model_validate(g.model_dump()) for g in gains], batch)
-        base = RISE_PRESETS[self.preset]
-        depth = RiseGains.model_validate({**base[0].model_dump(), **self.depth})
-        yaw = RiseGains.model_validate({**base[1].model_dump(), **self.yaw})
-        return Rise([depth, yaw], batch)
 
 
 class RovWorld:
@@ -314,14 +220,10 @@ class RovWorld:
         cdo, w = self.cdo_view(x)
         eo = self.eo_view(x)
         acc = self.tau / self.m_hat  # B u with the nominal inertia
-        c, p = self.sc.cdo, self.sc.eo
-        th = self.cdo_gain
-        inn = (w - cdo[:, :, 0])[..., None]
-        d_cdo = np.stack([cdo[:, :, 1], cdo[:, :, 2] + acc, np.zeros_like(acc)], axis=2) + th * inn
-        d_w = cdo[:, :, 1] + c.k_w * (w - cdo[:, :, 0])
-        g = np.array([p.a[0] / p.eps, p.a[1] / p.eps**2, p.a[2] / p.eps**3])
-        inn_eo = (self.y - eo[:, :, 0])[..., None]
-        d_eo = np.stack([eo[:, :, 1], eo[:, :, 2] + acc, np.zeros_like(acc)], axis=2) + g * inn_eo
+        p = self.sc.eo
+        d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
+        d_w = cdo[:, :, 1] + self.sc.cdo.k_w * (w - cdo[:, :, 0])
+        d_eo = chain_rhs(eo, acc, np.array([p.a[0] / p.eps, p.a[1] / p.eps**2, p.a[2] / p.eps**3]), self.y - eo[:, :, 0])
         return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

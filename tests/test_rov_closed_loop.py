@@ -39,7 +39,7 @@ def test_payload_hangs_until_the_floor_and_pushes_act_in_their_window():
     sc = RovScenario(name="p", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10,
                      payload={"weight_fraction": 0.04, "floor_depth": 0.25},
                      pushes=[{"t_start": 2.0, "duration": 0.5, "force": [70.0, 0.0]}])
-    from marinebench.rov_scenario import ControllerSpec
+    from marinebench.controllers.spec import ControllerSpec
 
     w = RovWorld(sc, 0, np.zeros(2, dtype=int), [(ControllerSpec(kind="rise"), [0, 1])])
     x = np.array([[0.1, 0, 0, 0], [0.3, 0, 0, 0]])

@@ -5,10 +5,11 @@ import pytest
 import yaml
 
 from marinebench.config import load_experiment, load_scenario, preflight
+from marinebench.controllers.spec import ControllerSpec
 from marinebench.design.cdo import BINOMIAL, check, design_lmi, sampled_radius, verify_lmi
 from marinebench.errors import ConfigError, DesignError
 from marinebench.experiments.runner import run
-from marinebench.rov_scenario import ControllerSpec, min_jerk
+from marinebench.rov_scenario import min_jerk
 from marinebench.sim.recorders import RecoveryTime
 
 from .conftest import ROOT

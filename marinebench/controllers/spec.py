@@ -1,0 +1,61 @@
+"""The controller of a closed-loop variant: RISE or S+RISE with its feedback source and output unit."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+
+
+class ControllerSpec(BaseModel):
+    """The controller of a variant in a closed-loop (rov_tracking) scenario."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["rise", "srise"]
+    feedback: Literal["measured", "cdo", "eo"] = Field(
+        "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "
+        "observer's estimates of eta and eta_dot"
+    )
+    output_scale: float | tuple[float, float] | Literal["inertia"] = Field(
+        1.0, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
+        "and N m, 9.81 as kgf, 'inertia' as accelerations (tau = M_hat nu, the nominal inertia with added mass); "
+        "the paper does not state the unit of tau",
+    )
+
+    disturbance_feedforward: bool = Field(
+        False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
+        "(x_hat_3) from the command, so the controller is fed the CDO's state and disturbance estimates",
+    )
+    preset: Literal["subjugator", "table2_equivalent"] = Field(
+        "subjugator", description="RISE gains (Tijjani does not publish its own): SubjuGator's z/yaw entries, or "
+        "Table II's S+RISE gains at their small-error constants (baselines.md 5.2)",
+    )
+    depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
+    yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
+
+    @model_validator(mode="after")
+    def _feedforward_needs_an_observer(self):
+        if self.disturbance_feedforward and self.feedback == "measured":
+            raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
+        return self
+
+    def scale(self, inertia: np.ndarray) -> np.ndarray:
+        """The (depth, yaw) output multipliers."""
+        if self.output_scale == "inertia":
+            return np.asarray(inertia, dtype=float)
+        s = np.broadcast_to(np.asarray(self.output_scale, dtype=float), (2,)).copy()
+        if (s <= 0).any():
+            raise ValueError("output_scale must be positive")
+        return s
+
+    def build(self, batch: int):
+        if self.kind == "srise":
+            gains = [TABLE_II_DEPTH.model_copy(update=self.depth), TABLE_II_YAW.model_copy(update=self.yaw)]
+            return SRise([SRiseGains.model_validate(g.model_dump()) for g in gains], batch)
+        base = RISE_PRESETS[self.preset]
+        depth = RiseGains.model_validate({**base[0].model_dump(), **self.depth})
+        yaw = RiseGains.model_validate({**base[1].model_dump(), **self.yaw})
+        return Rise([depth, yaw], batch)
