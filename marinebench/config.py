@@ -177,6 +177,10 @@ class TableSpec(BaseModel):
     metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
     signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
     paper: PaperValues | None = None
+    relative: tuple[str, str] | None = Field(
+        None, description="add a row with the % change of the first variant's means against the second's "
+        "(paper values for it under '<first>_vs_<second>')",
+    )
     display: dict[str, Display] = Field(
         default_factory=dict, description="'metric/signal' -> scale and unit for the table (e.g. rmse/depth: cm)"
     )
@@ -342,8 +346,11 @@ class Experiment(BaseModel):
             for name in self.table.metrics or [self.table.metric]:
                 if name not in kinds and name not in DIAGNOSTICS:
                     raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
+            rel = self.table.relative
+            if rel is not None and not set(rel) <= set(names):
+                raise ValueError(f"table.relative: unknown variants {sorted(set(rel) - set(names))}")
             if self.table.paper is not None:
-                unknown = set(self.table.paper.values) - set(names)
+                unknown = set(self.table.paper.values) - set(names) - ({f"{rel[0]}_vs_{rel[1]}"} if rel else set())
                 if unknown:
                     raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
         if self.sweep is not None:

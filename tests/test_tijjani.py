@@ -162,3 +162,16 @@ def test_bad_multi_scenario_input_is_one_line_naming_file_and_key(tmp_path):
     assert res.exit_code == 2
     assert "tijjani_table3.yaml: variants.1.scenarios: unknown scenarios ['S7']" in res.output
     assert not (tmp_path / "o").exists()
+
+
+def test_relative_row_compares_means_beside_the_papers_percentages():
+    import pandas as pd
+
+    from marinebench.results.tables import markdown_table
+
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_observers.yaml")
+    rows = [("S1", v, sig, "rmse", mean, np.nan, np.nan, 5, 0)
+            for v, mean in (("cdo", 3.0), ("eo", 4.0)) for sig in ("depth", "yaw", "depth_meas", "yaw_meas")]
+    summary = pd.DataFrame(rows, columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
+    line = next(ln for ln in markdown_table(exp, summary).splitlines() if ln.startswith("| cdo vs eo [%]"))
+    assert line.split(" | ")[1:] == ["-25.0", "–", "-25.0", "–", "-25.0", "-45.4", "-25.0", "-24.7 |"]

@@ -131,7 +131,20 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
                 if paper is not None and not multi:
                     row.append(fmt(paper.values.get(v.name, {}).get(sig, float("nan"))))
         lines.append("| " + " | ".join(row) + " |")
-    labels = {v.name: (v.observer or v.controller).model_dump() for v in exp.variants}
+    if spec is not None and spec.relative is not None:
+        a, b = spec.relative
+        row = [f"{a} vs {b} [%]"]
+        for name in names:
+            for sig in signals:
+                ok = (a, sig, name) in s.index and (b, sig, name) in s.index
+                change = 100 * (s.loc[(a, sig, name), "mean"] / s.loc[(b, sig, name), "mean"] - 1) if ok else float("nan")
+                row.append("–" if math.isnan(change) else f"{change:+.1f}")
+                if paper is not None and not multi:
+                    row.append(fmt(paper.values.get(f"{a}_vs_{b}", {}).get(sig, float("nan"))))
+        lines.append("| " + " | ".join(row) + " |")
     lines += ["", "Variants:", ""]
-    lines += [f"- `{name}`: " + ", ".join(f"{k}={val}" for k, val in t.items() if val is not None) for name, t in labels.items()]
+    for v in exp.variants:
+        parts = [t.model_dump() for t in (v.controller, v.observer) if t is not None]
+        lines.append(f"- `{v.name}`: " + "; ".join(", ".join(f"{k}={val}" for k, val in t.items() if val is not None)
+                                                    for t in parts))
     return "\n".join(lines) + "\n"
