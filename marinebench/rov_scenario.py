@@ -134,7 +134,7 @@ class RovWorld:
         std = [sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg), np.deg2rad(sc.sensors.gyro_noise_dps)]
         self.noise = draws[where] * np.array(std)  # depth, yaw, yaw rate
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
-        self.feedforward = [spec.disturbance_feedforward for spec, _ in controllers]
+        self.feedforward = [spec.feedforward_mask() for spec, _ in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
         self.control_every = round(sc.control_period / sc.dt)
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
@@ -211,8 +211,8 @@ class RovWorld:
                     est = cdo if fb == "cdo" else eo
                     pos, vel = est[idx, :, 0], est[idx, :, 1]
                 tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
-                if ff:
-                    tau[idx] -= self.m_hat * est[idx, :, 2]
+                if ff.any():
+                    tau[idx] -= ff * self.m_hat * est[idx, :, 2]
             _, self.tau = self.plant.allocate(tau)
 
     def observers_derivative(self, x: np.ndarray) -> np.ndarray:

@@ -175,3 +175,15 @@ def test_relative_row_compares_means_beside_the_papers_percentages():
     summary = pd.DataFrame(rows, columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
     line = next(ln for ln in markdown_table(exp, summary).splitlines() if ln.startswith("| cdo vs eo [%]"))
     assert line.split(" | ")[1:] == ["-25.0", "–", "-25.0", "–", "-25.0", "-45.4", "-25.0", "-24.7 |"]
+
+
+def test_disturbance_feedforward_acts_on_the_chosen_dof_only(tmp_path):
+    ctrl = {"kind": "srise", "output_scale": [40.0, 9.81], "feedback": "cdo"}
+    doc = {"scenario": {"from": str(ROOT / "scenarios" / "rov_s1.yaml"), "horizon": 6.0}, "seeds": 1,
+           "variants": [{"name": "plain", "controller": ctrl},
+                        {"name": "yaw_ff", "controller": {**ctrl, "disturbance_feedforward": [False, True]}}],
+           "metrics": [{"kind": "rmse", "t_start": 0.0, "signals": ["depth", "yaw"]}]}
+    exp, _ = load_experiment(write(tmp_path, doc))
+    m = run(exp, traces=False).metrics.set_index(["variant", "signal"])["value"]
+    assert m["yaw_ff", "depth"] == m["plain", "depth"]  # heave and yaw are decoupled in the model
+    assert abs(m["yaw_ff", "yaw"] - m["plain", "yaw"]) > 0.05 * m["plain", "yaw"]

@@ -25,9 +25,10 @@ class ControllerSpec(BaseModel):
         "the paper does not state the unit of tau",
     )
 
-    disturbance_feedforward: bool = Field(
+    disturbance_feedforward: bool | tuple[bool, bool] = Field(
         False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
-        "(x_hat_3) from the command, so the controller is fed the CDO's state and disturbance estimates",
+        "(x_hat_3) from the command, so the controller is fed the observer's state and disturbance estimates "
+        "(Tijjani Sec. IV); one flag, or (depth, yaw)",
     )
     preset: Literal["subjugator", "table2_equivalent"] = Field(
         "subjugator", description="RISE gains (Tijjani does not publish its own): SubjuGator's z/yaw entries, or "
@@ -38,9 +39,13 @@ class ControllerSpec(BaseModel):
 
     @model_validator(mode="after")
     def _feedforward_needs_an_observer(self):
-        if self.disturbance_feedforward and self.feedback == "measured":
+        if any(self.feedforward_mask()) and self.feedback == "measured":
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
         return self
+
+    def feedforward_mask(self) -> np.ndarray:
+        """Per DOF (depth, yaw): whether the disturbance estimate is fed forward."""
+        return np.broadcast_to(np.asarray(self.disturbance_feedforward, dtype=bool), (2,)).copy()
 
     def scale(self, inertia: np.ndarray) -> np.ndarray:
         """The (depth, yaw) output multipliers."""
