@@ -131,7 +131,8 @@ class IntMetric(BaseModel):
 
 class RecoveryMetric(BaseModel):
     """Time to recover from each of the scenario's pushes (rov_tracking): after a push on a DOF ends, the time
-    until the tracking error of that DOF is back within ``tol`` for good (largest over the pushes) [s]."""
+    until that DOF is back within ``tol`` of where it would have been without the pushes, for good (largest
+    over the pushes) [s]."""
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["recovery"] = "recovery"
@@ -141,6 +142,11 @@ class RecoveryMetric(BaseModel):
         default_factory=lambda: {"depth": 0.01, "yaw": 0.0175}, description="recovered band [m, rad]"
     )
     window: float = Field(4.0, gt=0, description="[s] look this long after each push; reported if not recovered")
+    against: Literal["undisturbed", "reference"] = Field(
+        "undisturbed", description="undisturbed: deviation from the same run (same seed and noise) without the "
+        "pushes, i.e. until the push's effect has died out; reference: the tracking error itself (a push during a "
+        "manoeuvre then also counts the manoeuvre's own tracking error)",
+    )
 
     @property
     def label(self) -> str:

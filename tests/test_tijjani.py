@@ -187,3 +187,18 @@ def test_disturbance_feedforward_acts_on_the_chosen_dof_only(tmp_path):
     m = run(exp, traces=False).metrics.set_index(["variant", "signal"])["value"]
     assert m["yaw_ff", "depth"] == m["plain", "depth"]  # heave and yaw are decoupled in the model
     assert abs(m["yaw_ff", "yaw"] - m["plain", "yaw"]) > 0.05 * m["plain", "yaw"]
+
+
+def test_recovery_against_the_undisturbed_twin_ignores_the_manoeuvres_own_error():
+    """A push during a turn: the tracking error stays large (the turn), the deviation from the same run
+    without the push does not."""
+    t = np.arange(0.0, 3.0, 0.5)
+    truth = np.array([0.0, 0.5, 0.52, 0.53, 0.54, 0.55])  # turning, pushed off by 0.05 right after t = 0.5
+    calm = np.array([0.0, 0.45, 0.50, 0.529, 0.54, 0.55])
+    reference = truth - 0.1  # a 0.1 tracking error throughout the turn
+    for against, expected in (("reference", 2.0), ("undisturbed", 0.5)):
+        rec = RecoveryTime({"yaw": [0.5]}, {"yaw": 0.01}, window=2.5,
+                           undisturbed={"yaw": calm[:, None]} if against == "undisturbed" else None)
+        for k, tk in enumerate(t):
+            rec.update(k, tk, {"yaw": truth[k : k + 1]}, {"yaw": reference[k : k + 1]})
+        assert rec.value["yaw"][0] == pytest.approx(expected)

@@ -27,7 +27,7 @@ from marinebench.observers.liu_eso import LiuEsoObserver
 from marinebench.rov_scenario import OBSERVE, RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
-from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, RecoveryTime, Traces
+from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, RecoveryTime, Traces, TruthLog
 
 OBSERVER_KINDS = {"open_loop_asv": ("bejarano", "liu_eso"), "dp_supply": ("npo", "resetting_fto"), "rov_tracking": ()}
 
@@ -178,7 +178,9 @@ def _run_single(
         elif m.kind == "recovery":
             ends = {s: [p.t_start + p.duration for p in sc.pushes if p.force[("depth", "yaw").index(s)] != 0]
                     for s in m.signals}
-            recorders.append(RecoveryTime({s: e for s, e in ends.items() if e}, m.tol, m.window))
+            ends = {s: e for s, e in ends.items() if e}
+            twin = _undisturbed_truth(exp, run_variant, run_seed, list(ends), n_steps) if m.against == "undisturbed" else None
+            recorders.append(RecoveryTime(ends, m.tol, m.window, twin))
         else:
             recorders.append(ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon))
     trace_signals = sorted({s for g in groups for s in g.observer.signals})
@@ -225,6 +227,17 @@ def _run_single(
     summary = summarise(metrics)
     arrays = tracer.arrays() if tracer else (np.zeros(0), {}, {})
     return RunResult(exp, metrics, summary, arrays, run_variant, run_seed, wall, rate, design_summary(exp))
+
+
+def _undisturbed_truth(exp: Experiment, run_variant, run_seed, signals: list[str], n_steps: int) -> dict[str, np.ndarray]:
+    """Per-step truth of the same runs (same seeds, noise, controllers) with the scenario's pushes removed."""
+    if not signals:
+        return {}
+    calm = exp.model_copy(update={"scenario": exp.scenario.model_copy(update={"pushes": []})})
+    world = make_world(calm, run_variant, run_seed)
+    log = TruthLog(signals, n_steps)
+    simulate(world, build_groups(calm, run_variant, world.plant), exp.scenario.dt, n_steps, [log])
+    return log.values
 
 
 def summarise(metrics: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:

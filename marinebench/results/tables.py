@@ -21,7 +21,8 @@ def _window(exp: Experiment, name: str) -> str:
     if m.kind == "int":
         return f"{name}: ∫τ²dt from the first time the tracking error is within {m.tol}"
     if m.kind == "recovery":
-        return f"{name}: largest time after a push until the tracking error stays within {m.tol} [s]"
+        what = "the same run without the pushes" if m.against == "undisturbed" else "the reference"
+        return f"{name}: largest time after a push until the vehicle stays within {m.tol} of {what} [s]"
     return f"{name}: {m.kind} of est − truth over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 

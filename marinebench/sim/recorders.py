@@ -128,20 +128,38 @@ class ControlEnergy:
             self.value[s] += np.where(self.started[s], truth[c] ** 2 * self.dt, 0.0)
 
 
+class TruthLog:
+    """Every step's truth of some signals, ``(n_steps + 1, B)`` arrays (e.g. an undisturbed twin run)."""
+
+    def __init__(self, signals: list[str], n_steps: int) -> None:
+        self.signals, self.n = list(signals), n_steps + 1
+        self.values: dict[str, np.ndarray] = {}
+
+    def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
+        for s in self.signals:
+            if s not in self.values:
+                self.values[s] = np.full((self.n, truth[s].shape[0]), np.nan)
+            self.values[s][k] = truth[s]
+
+
 class RecoveryTime:
     """Time to recover from each disturbance event, per signal: for an event ending at ``t_e``, the last time
-    in ``[t_e, t_e + window)`` at which ``|est - truth| > tol``, minus ``t_e`` (0 if the error never leaves the
-    band). Per run, the largest over the signal's events; ``window`` if it has not recovered by then."""
+    in ``[t_e, t_e + window)`` at which the deviation exceeds ``tol``, minus ``t_e`` (0 if it never does).
+    The deviation is ``|est - truth|`` (the tracking error), or, with ``undisturbed`` (per-step truth of the
+    same runs without the events), ``|truth - undisturbed|``: how far the events have moved the vehicle.
+    Per run, the largest over the signal's events; ``window`` if it has not recovered by then."""
 
-    def __init__(self, events: dict[str, list[float]], tol: dict[str, float], window: float) -> None:
-        self.events, self.tol, self.window = events, tol, window
+    def __init__(self, events: dict[str, list[float]], tol: dict[str, float], window: float,
+                 undisturbed: dict[str, np.ndarray] | None = None) -> None:
+        self.events, self.tol, self.window, self.undisturbed = events, tol, window, undisturbed
         self.last_out: dict[str, list[np.ndarray]] = {}
 
     def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None:
         for s, ends in self.events.items():
             if s not in self.last_out:
                 self.last_out[s] = [np.full(truth[s].shape, np.nan) for _ in ends]
-            out = np.abs(est[s] - truth[s]) > self.tol[s]
+            other = est[s] if self.undisturbed is None else self.undisturbed[s][k]
+            out = np.abs(other - truth[s]) > self.tol[s]
             for i, t_e in enumerate(ends):
                 if t_e <= t < t_e + self.window:
                     self.last_out[s][i] = np.where(out, t, self.last_out[s][i])
