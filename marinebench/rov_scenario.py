@@ -57,6 +57,17 @@ class Payload(BaseModel):
     floor_depth: float = Field(0.25, gt=0)
 
 
+class RandomLoad(BaseModel):
+    """An unmodelled random load on the plant (tether, currents; Tijjani attributes its yaw errors to the
+    tether's "undesired torques"): per DOF a stationary first-order Gauss-Markov process
+    ``v[n+1] = a v[n] + std sqrt(1 - a^2) xi[n]``, ``a = exp(-period / time_constant)``, held for ``period``."""
+
+    model_config = ConfigDict(extra="forbid")
+    std: tuple[float, float] = Field(..., description="[N, N m] stationary standard deviation (depth, yaw)")
+    time_constant: float = Field(2.0, gt=0, description="[s]")
+    period: float = Field(0.1, gt=0, description="[s] a new value every period (a multiple of dt)")
+
+
 class RovSensors(BaseModel):
     model_config = ConfigDict(extra="forbid")
     depth_period: float = Field(0.05, gt=0, description="[s] pressure sensor (Tijjani Table I)")
@@ -93,6 +104,7 @@ class RovScenario(ScenarioBase):
     )
     payload: Payload | None = None
     pushes: list[Push] = Field(default_factory=list)
+    random_load: RandomLoad | None = Field(None, description="unmodelled random load (off by default)")
     dt: float = Field(0.002, gt=0, description="integration step [s]")
 
     PER_RUN: ClassVar[tuple[str, ...]] = ()
@@ -117,6 +129,8 @@ class RovScenario(ScenarioBase):
         self.require_multiple_of_dt(self.sensors.depth_period, "sensors.depth_period")
         self.require_multiple_of_dt(self.sensors.attitude_period, "sensors.attitude_period")
         self.require_multiple_of_dt(self.control_period, "control_period")
+        if self.random_load is not None:
+            self.require_multiple_of_dt(self.random_load.period, "random_load.period")
         return self
 
 
@@ -133,6 +147,18 @@ class RovWorld:
         draws = np.array([g.standard_normal((n, 3)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
         std = [sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg), np.deg2rad(sc.sensors.gyro_noise_dps)]
         self.noise = draws[where] * np.array(std)  # depth, yaw, yaw rate
+        self.random_load = np.zeros((B, 2))
+        if sc.random_load is not None:
+            rl = sc.random_load
+            m = int(np.ceil(sc.horizon / rl.period)) + 2
+            a = np.exp(-rl.period / rl.time_constant)
+            xi = np.array([g.standard_normal((m, 2)) for g in stream_rngs(root_seed, seeds, "rov_random_load")])
+            v = np.empty_like(xi)
+            v[:, 0] = xi[:, 0]
+            for n in range(1, m):
+                v[:, n] = a * v[:, n - 1] + np.sqrt(1 - a * a) * xi[:, n]
+            self.load_sequence = v[where] * np.array(rl.std)  # (B, m, 2)
+            self.load_every = round(rl.period / sc.dt)
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
         self.feedforward = [spec.feedforward_mask() for spec, _ in controllers]
         self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
@@ -163,7 +189,7 @@ class RovWorld:
         return np.array([d, y]), np.array([dd, yd])
 
     def loads(self, t: float, x: np.ndarray) -> np.ndarray:
-        f = np.zeros((x.shape[0], 2))
+        f = self.random_load.copy()
         if self.sc.payload is not None:
             hanging = x[:, 0] < self.sc.payload.floor_depth
             f[:, 0] += np.where(hanging, self.sc.payload.weight_fraction * self.weight, 0.0)
@@ -182,6 +208,8 @@ class RovWorld:
         return x[:, 12:18].reshape(-1, 2, 3)
 
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
+        if self.sc.random_load is not None:
+            self.random_load = self.load_sequence[:, k // self.load_every]
         cdo, w = self.cdo_view(x)
         ref = None
         for ch, every in enumerate(self.every):

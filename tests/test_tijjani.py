@@ -204,3 +204,22 @@ def test_recovery_against_the_undisturbed_twin_ignores_the_manoeuvres_own_error(
         for k, tk in enumerate(t):
             rec.update(k, tk, {"yaw": truth[k : k + 1]}, {"yaw": reference[k : k + 1]})
         assert rec.value["yaw"][0] == pytest.approx(expected)
+
+
+def test_random_load_is_a_held_stationary_gauss_markov_sequence():
+    from marinebench.rov_scenario import RovScenario, RovWorld
+
+    sc = RovScenario(name="r", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=4000.0,
+                     random_load={"std": [5.0, 0.5], "time_constant": 2.0, "period": 0.1})
+    w = RovWorld(sc, 3, np.zeros(1, dtype=int), [(ControllerSpec(kind="rise"), [0])])
+    seq = w.load_sequence[0]
+    assert seq[:, 0].std() == pytest.approx(5.0, rel=0.1) and seq[:, 1].std() == pytest.approx(0.5, rel=0.1)
+    lag = np.corrcoef(seq[:-20, 0], seq[20:, 0])[0, 1]  # 2 s apart: exp(-1)
+    assert lag == pytest.approx(np.exp(-1.0), abs=0.08)
+    x = np.zeros((1, 18))
+    w.begin_step(0, 0.0, x)
+    first = w.loads(0.0, x).copy()
+    w.begin_step(49, 0.098, x)  # same 0.1 s period: same load
+    assert np.array_equal(w.loads(0.098, x), first)
+    w.begin_step(50, 0.1, x)
+    assert not np.array_equal(w.loads(0.1, x), first)
