@@ -10,6 +10,11 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 
 
+# The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
+# as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
+DEFAULT_SCALE = {"rise": (1.0, 1.0), "srise": (40.0, 9.81)}
+
+
 class ControllerSpec(BaseModel):
     """The controller of a variant in a closed-loop (rov_tracking) scenario."""
 
@@ -19,10 +24,10 @@ class ControllerSpec(BaseModel):
         "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "
         "observer's estimates of eta and eta_dot"
     )
-    output_scale: float | tuple[float, float] | Literal["inertia"] = Field(
-        1.0, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
+    output_scale: float | tuple[float, float] | Literal["inertia"] | None = Field(
+        None, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
         "and N m, 9.81 as kgf, 'inertia' as accelerations (tau = M_hat nu, the nominal inertia with added mass); "
-        "the paper does not state the unit of tau",
+        "the paper does not state the unit of tau. Default: RISE (1, 1); S+RISE (40, 9.81), see DEFAULT_SCALE",
     )
 
     disturbance_feedforward: bool | tuple[bool, bool] = Field(
@@ -39,6 +44,8 @@ class ControllerSpec(BaseModel):
 
     @model_validator(mode="after")
     def _feedforward_needs_an_observer(self):
+        if self.output_scale not in (None, "inertia") and (np.asarray(self.output_scale, dtype=float) <= 0).any():
+            raise ValueError("output_scale must be positive")
         if any(self.feedforward_mask()) and self.feedback == "measured":
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
         return self
@@ -51,10 +58,8 @@ class ControllerSpec(BaseModel):
         """The (depth, yaw) output multipliers."""
         if self.output_scale == "inertia":
             return np.asarray(inertia, dtype=float)
-        s = np.broadcast_to(np.asarray(self.output_scale, dtype=float), (2,)).copy()
-        if (s <= 0).any():
-            raise ValueError("output_scale must be positive")
-        return s
+        scale = DEFAULT_SCALE[self.kind] if self.output_scale is None else self.output_scale
+        return np.broadcast_to(np.asarray(scale, dtype=float), (2,)).copy()
 
     def build(self, batch: int):
         if self.kind == "srise":
