@@ -9,7 +9,6 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 
-
 # The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
 # as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
 DEFAULT_SCALE = {"rise": (1.0, 1.0), "srise": (40.0, 9.81)}
