@@ -22,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
 from marinebench.scenario import ScenarioBase, stream_rngs
+from marinebench.sensors.gauss_markov import gm_step
 
 ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
 OBSERVE = {None: 0, "cdo": 1, "eo": 2}
@@ -154,9 +155,9 @@ class RovWorld:
             a = np.exp(-rl.period / rl.time_constant)
             xi = np.array([g.standard_normal((m, 2)) for g in stream_rngs(root_seed, seeds, "rov_random_load")])
             v = np.empty_like(xi)
-            v[:, 0] = xi[:, 0]
+            v[:, 0] = xi[:, 0]  # stationary start, then eq. (48) with the driving std giving a unit stationary std
             for n in range(1, m):
-                v[:, n] = a * v[:, n - 1] + np.sqrt(1 - a * a) * xi[:, n]
+                v[:, n] = gm_step(v[:, n - 1], np.sqrt(1 - a * a), 1 / rl.time_constant, rl.period, xi[:, n])
             self.load_sequence = v[where] * np.array(rl.std)  # (B, m, 2)
             self.load_every = round(rl.period / sc.dt)
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
@@ -174,10 +175,11 @@ class RovWorld:
         self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
         c = sc.cdo
         self.cdo_gain = np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.gain())  # Delta_theta K*
+        self.eo_gain = sc.eo.gain()
         self.feedback = [spec.feedback for spec, _ in controllers]
         self.observe = np.zeros(B, dtype=int) if observe is None else np.asarray(observe)
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
-        self.ydot = np.zeros((B, 2))  # held rates: depth by difference (or true), yaw from the gyro
+        self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
         self.at_sample = np.repeat(self.x0[None, :, :2], 3, axis=0)  # reference, CDO, EO estimate at the last sample
         self.tau = np.zeros((B, 2))  # achieved thrust (after allocation and saturation)
         self.weight = sc.vessel.mass * 9.81
@@ -210,28 +212,28 @@ class RovWorld:
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
         if self.sc.random_load is not None:
             self.random_load = self.load_sequence[:, k // self.load_every]
+        sampled = [ch for ch, every in enumerate(self.every) if k % every == 0]
+        control = k % self.control_every == 0
+        if not (sampled or control):
+            return
+        ref, ref_dot = self.reference(t)
         cdo, w = self.cdo_view(x)
-        ref = None
-        for ch, every in enumerate(self.every):
-            if k % every == 0:
-                ref = self.reference(t)[0] if ref is None else ref
-                self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
-                self.at_sample[1, :, ch] = cdo[:, ch, 0]
-                self.at_sample[2, :, ch] = self.eo_view(x)[:, ch, 0]
-                y = x[:, ch] + self.noise[:, k, ch]
-                source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
-                if source == "difference":
-                    if k > 0:
-                        self.ydot[:, ch] = (y - self.y[:, ch]) / (every * self.sc.dt)
-                else:
-                    self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[:, k, 2] if source == "gyro" else 0.0)
-                self.y[:, ch] = y
-                w[:, ch] = y  # the CDO's predictor restarts from each new sample
-        if k % self.control_every == 0:
-            ref, ref_dot = self.reference(t)
+        eo = self.eo_view(x)
+        for ch in sampled:
+            self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
+            self.at_sample[1, :, ch] = cdo[:, ch, 0]
+            self.at_sample[2, :, ch] = eo[:, ch, 0]
+            y = x[:, ch] + self.noise[:, k, ch]
+            source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
+            if source == "difference":
+                if k > 0:
+                    self.ydot[:, ch] = (y - self.y[:, ch]) / (self.every[ch] * self.sc.dt)
+            else:
+                self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[:, k, 2] if source == "gyro" else 0.0)
+            self.y[:, ch] = y
+            w[:, ch] = y  # the CDO's predictor restarts from each new sample
+        if control:
             tau = np.zeros_like(self.tau)
-            cdo, _ = self.cdo_view(x)
-            eo = self.eo_view(x)
             for (ctrl, idx, scale), fb, ff in zip(self.groups, self.feedback, self.feedforward):
                 if fb == "measured":
                     pos, vel = self.y[idx], self.ydot[idx]
@@ -248,10 +250,9 @@ class RovWorld:
         cdo, w = self.cdo_view(x)
         eo = self.eo_view(x)
         acc = self.tau / self.m_hat  # B u with the nominal inertia
-        p = self.sc.eo
         d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
         d_w = cdo[:, :, 1] + self.sc.cdo.k_w * (w - cdo[:, :, 0])
-        d_eo = chain_rhs(eo, acc, np.array([p.a[0] / p.eps, p.a[1] / p.eps**2, p.a[2] / p.eps**3]), self.y - eo[:, :, 0])
+        d_eo = chain_rhs(eo, acc, self.eo_gain, self.y - eo[:, :, 0])
         return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -58,6 +58,10 @@ class EoParams(BaseModel):
     eps: float = Field(0.041, gt=0, description="[s] 1/theta: the CDO's nominal bandwidth")
     a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
 
+    def gain(self) -> np.ndarray:
+        """[a1/eps, a2/eps^2, a3/eps^3]."""
+        return np.array(self.a) / self.eps ** np.arange(1, 4)
+
 
 class RovObserverSpec(BaseModel):
     """CDO (eq. 38) or extended high-gain observer (EO) view of a closed-loop run (rov_tracking).

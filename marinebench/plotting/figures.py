@@ -18,10 +18,17 @@ NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "s
          "x": "north x", "y": "east y", "psi": "heading ψ", "b_x": "bias b_N", "b_y": "bias b_E", "b_n": "bias b_ψ"}
 
 
-def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
+def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tuple[list[str], dict[str, str], list[int]]:
+    """The figure's variant names, their legend labels, and the batch index of each one's seed-0 run."""
     names = spec.variants or [v.name for v in exp.variants]
     index = {v.name: i for i, v in enumerate(exp.variants)}
     labels = {v.name: v.label or v.name for v in exp.variants}
+    runs = [int(np.flatnonzero((run_variant == index[n]) & (run_seed == 0))[0]) for n in names]
+    return names, labels, runs
+
+
+def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
+    names, labels, runs = seed0_runs(exp, spec, run_variant, run_seed)
     rows = len(spec.signals) * (2 if spec.error else 1)
     fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True, squeeze=False)
     axes = axes[:, 0]
@@ -42,7 +49,6 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
 
     for i, sig in enumerate(spec.signals):
         ax = axes[i * (2 if spec.error else 1)]
-        runs = [int(np.flatnonzero((run_variant == index[name]) & (run_seed == 0))[0]) for name in names]
         if sig in est:  # truth ("actual") and each variant's estimate (or reference)
             ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
             series = [truth[sig][:, ref]] + [est[sig][:, b] for b in runs]
@@ -72,10 +78,7 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
 def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
     """Closed-loop layout of Tijjani Figs 3/5/7/9: a column per DOF (signals), rows: the reference and each
     variant's actual trajectory, the tracking errors, the control inputs ``tau_<signal>``. Yaw in degrees."""
-    names = spec.variants or [v.name for v in exp.variants]
-    index = {v.name: i for i, v in enumerate(exp.variants)}
-    labels = {v.name: v.label or v.name for v in exp.variants}
-    runs = [int(np.flatnonzero((run_variant == index[n]) & (run_seed == 0))[0]) for n in names]
+    names, labels, runs = seed0_runs(exp, spec, run_variant, run_seed)
     mask = slice(None) if spec.t_range is None else (t >= spec.t_range[0]) & (t <= spec.t_range[1])
     cols = len(spec.signals)
     fig, axes = plt.subplots(3, cols, figsize=(5.5 * cols, 7.5), sharex=True, squeeze=False)
