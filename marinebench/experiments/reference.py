@@ -1,7 +1,7 @@
 """Plain per-run reference of the DP observers and the KPI, for equivalence tests and ``marinebench bench``.
 
 One run at a time, written as directly as the equations read: 9-vectors and 9 x 9 matrices, the RK4
-one-step maps formed from A_i(psi) at every step (no harmonic fit), the window logic with scalars, the
+one-step maps (``observers.dp.one_step_maps``) formed from A_i(psi) at every step (no harmonic fit), the window logic with scalars, the
 jump with ``numpy.linalg.solve`` and ``cond``. The world (plant and sensors) is the same code as the
 batched engine with a batch of one, so both see identical measurements.
 """
@@ -15,7 +15,7 @@ from marinebench.design.kalman import dp_system, kalman_gains
 from marinebench.experiments.runner import make_world
 from marinebench.models.supply import bis_scale
 from marinebench.observers.base import wrap_angle
-from marinebench.observers.fto import rk4_maps
+from marinebench.observers.dp import one_step_maps
 
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
 
@@ -62,17 +62,15 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
         k3 = f(t + dt / 2, x + dt / 2 * k2)
         k4 = f(t + dt, x + dt * k3)
         x = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        # observers: z_i+ = P_i z_i + H_i (B tau + L_i y), Phi_i+ = P_i Phi_i
+        # observers: z_i+ = P_i z_i + G_y y + G_u tau, Phi_i+ = P_i Phi_i
         A = dp_system(M, D, y[2])  # eq. (43) at the measured heading
         R = A[0:3, 6:9]
         for i in range(2):
             L = np.vstack([g[i].K1, g[i].K2, Minv @ R.T @ g[i].K3])
             Acl = A.copy()
             Acl[:, 0:3] -= L
-            P, H = rk4_maps(Acl, dt)
-            w = L @ y
-            w[6:9] += Minv @ tau
-            z[i] = P @ z[i] + H @ w
+            P, Gy, Gu = one_step_maps(Acl, L, Minv, dt, t_obs.discretization)
+            z[i] = P @ z[i] + Gy @ y + Gu @ tau
             phi[i] = P @ phi[i]
         counter += 1
         if counter >= n_window:

@@ -1,9 +1,13 @@
 """DP observers on z = [eta, b, nu] (Torben et al. eqs. (42)-(47)): the NPO/continuous Luenberger
 observer and the resetting finite-time observer (eqs. (20)-(26)), batched over runs.
 
-Both run as discrete-time maps at the engine step with the held, notch-filtered measurement:
-``z+ = P_i z + H_i (B u + L_i(psi) y)`` with the RK4 maps of ``A_i(psi) = A(psi) - L_i(psi) C``
-(:func:`marinebench.observers.fto.rk4_maps`); Phi_i is propagated with the same P_i. The NPO is the
+Both run as discrete-time maps at the engine step with the held, notch-filtered measurement,
+``z+ = P_i z + G_y y + G_u u`` (:func:`one_step_maps`); Phi_i is propagated with the same P_i. The default
+``discretization: predictor`` uses the plant's own RK4 map of A(psi) plus the injection through its
+input map, ``P_i = P_A - H_A L_i C``, so the error obeys ``e+ = P_i e`` exactly and the FTO jump of eq. (16)
+recovers the state exactly in discrete time (a clean plant integrated with the same step). The older
+``rk4`` map (RK4 of ``A - L_i C`` with y held) differs from the plant's step by O(dt^2) L_i C A terms;
+with an aggressive L2 that mismatch dominates z* (tested in tests/test_dp_world.py). The NPO is the
 resetting observer with k = 0 (z1 never jumps), exactly as the paper states.
 
 Tuning symbols: k -> ``k``, delta -> ``delta``, epsilon -> ``eps`` (times ``eps_scale``), c_max ->
@@ -36,6 +40,13 @@ class NpoTuning(BaseModel):
     bias_units: Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"] = Field(
         "acceleration", description="units of the bias in the Kalman design (the paper does not say; see design/kalman.py)"
     )
+    discretization: Literal["predictor", "rk4"] = Field(
+        "predictor",
+        description="one-step map at the engine step: 'predictor' z+ = P_A z + H_A (B u + L (y - C z)) with the "
+        "plant's own RK4 map of A, so the error map P_A - H_A L C is exact in discrete time (the FTO recovers the "
+        "state exactly); 'rk4': the RK4 map of the closed loop A - L C with y held (O(dt^2) error mismatch, which "
+        "an aggressive L2 turns into large jump errors)",
+    )
 
 
 class ResettingTuning(NpoTuning):
@@ -52,6 +63,25 @@ class ResettingTuning(NpoTuning):
     jump_coordinates: Literal["bis", "raw"] = Field(
         "bis", description="coordinates of the jump's linear algebra and of cond/c_max: bis-scaled (default) or raw SI"
     )
+
+
+def one_step_maps(Acl: np.ndarray, L: np.ndarray, Minv: np.ndarray, dt: float, scheme: str) -> tuple[np.ndarray, ...]:
+    """Discrete observer ``z+ = P z + G_y y + G_u u`` for closed loops ``Acl = A - L C`` (..., 9, 9).
+
+    ``predictor``: ``P = P_A - H_A L C``, ``G_y = H_A L``, ``G_u = H_A B`` with ``(P_A, H_A)`` the RK4 maps of
+    the open loop A, i.e. the plant's own RK4 step plus the injection; the error then obeys
+    ``e+ = (P_A - H_A L C) e`` exactly, the map Phi_i is propagated with, so Torben eq. (16) holds in
+    discrete time. ``rk4``: ``(P, H)`` = RK4 maps of ``Acl`` with y held, ``G_y = H L``, ``G_u = H B``.
+    """
+    if scheme == "rk4":
+        P, H = rk4_maps(Acl, dt)
+        return P, H @ L, H[..., :, 6:9] @ Minv
+    A = Acl.copy()
+    A[..., :, 0:3] += L  # A = Acl + L C with C = [I, 0, 0]
+    P, H = rk4_maps(A, dt)
+    Gy = H @ L
+    P[..., :, 0:3] -= Gy
+    return P, Gy, H[..., :, 6:9] @ Minv
 
 
 HARMONICS = 4  # A_i(psi) dt is affine in (cos psi, sin psi): the RK4 maps are trig polynomials of order <= 4
@@ -82,15 +112,15 @@ class DpObserver:
         B = len(tunings)
         self.dt, self.scale = dt, scale
         self.M, self.Minv, self.D = plant.M, plant.Minv, plant.D
-        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units) for t in tunings]
+        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, t.discretization) for t in tunings]
         classes = sorted(set(keys), key=keys.index)
         self.class_of = np.array([classes.index(k) for k in keys])
         self.classes = []
-        for q, r, q2, units in classes:
+        for q, r, q2, units, scheme in classes:
             g1 = kalman_gains(self.M, self.D, np.diag(q), np.diag(r), units)
             g2 = kalman_gains(self.M, self.D, np.diag(np.multiply(q, q2)), np.diag(r), units)
             K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
-            self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K)})
+            self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, scheme)})
         self.poles = [p for c in self.classes for p in c["poles"]]
         self.k = np.array([getattr(t, "k", 0.0) for t in tunings])
         delta = np.array([getattr(t, "delta", 2.5) for t in tunings])
@@ -126,15 +156,14 @@ class DpObserver:
         Acl[..., :, 0:3] -= L  # A - L C with C = [I, 0, 0]
         return Acl, L
 
-    def exact_maps(self, psi: np.ndarray, K: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """RK4 maps ``P (n,2,9,9)``, ``G_y = H L (n,2,9,3)``, ``G_u = H B (n,2,9,3)`` formed directly."""
-        Acl, L = self.closed_loop(psi, K)
-        P, H = rk4_maps(Acl, self.dt)
-        return P, H @ L, H[..., :, 6:9] @ self.Minv
+    def exact_maps(self, psi: np.ndarray, K: list[np.ndarray], scheme: str = "predictor") -> tuple[np.ndarray, ...]:
+        """One-step maps ``P (n,2,9,9)``, ``G_y (n,2,9,3)``, ``G_u (n,2,9,3)`` formed directly
+        (``z+ = P z + G_y y + G_u u``; see :func:`one_step_maps`)."""
+        return one_step_maps(*self.closed_loop(psi, K), self.Minv, self.dt, scheme)
 
-    def _fit_maps(self, K: list[np.ndarray]) -> np.ndarray:
+    def _fit_maps(self, K: list[np.ndarray], scheme: str) -> np.ndarray:
         psi = np.linspace(-np.pi, np.pi, 16, endpoint=False)
-        P, Gy, Gu = self.exact_maps(psi, K)
+        P, Gy, Gu = self.exact_maps(psi, K, scheme)
         values = np.concatenate([P.reshape(16, -1), Gy.reshape(16, -1), Gu.reshape(16, -1)], axis=1)
         coef, *_ = np.linalg.lstsq(_basis(psi), values, rcond=None)
         return coef  # (9, 2*81 + 2*27 + 2*27)
