@@ -95,6 +95,11 @@ class DpSensors(BaseModel):
         description="'noise': the GM error is sampled every ts and held, the pose is measured every step "
         "(default); 'measurement': the whole measurement is sampled every ts and held",
     )
+    between_samples: Literal["hold", "linear"] = Field(
+        "hold",
+        description="the Gauss-Markov error between its ts samples (with hold='noise'): 'hold' (staircase) or "
+        "'linear' (interpolated: the same eq. (48) samples, a continuous error as a physical drift is)",
+    )
     notch: bool = True
     notch_w0: float = Field(1.0, gt=0, description="notch centre frequency [rad/s]")
     notch_wc: float = Field(0.5, gt=0, description="notch width [rad/s]")
@@ -151,7 +156,7 @@ class DpWorld:
         self.every = round(s.ts / sc.dt)
         n_samples = int(np.ceil(sc.horizon / s.ts)) + 1
         # standard-normal GM draws, one stream per seed: (B, n_samples, 3)
-        normals = np.array([g.standard_normal((n_samples, 3)) for g in stream_rngs(root_seed, seeds, "gauss_markov")])
+        normals = np.array([g.standard_normal((n_samples + 1, 3)) for g in stream_rngs(root_seed, seeds, "gauss_markov")])
         self.normals = normals[where]
         # start in the stationary distribution for 'stationary' (eq. (48) with v[0] = 0 for 'driving')
         self.gm = np.zeros((B, 3))
@@ -172,6 +177,7 @@ class DpWorld:
             phases = np.array([g.uniform(0, 2 * np.pi, w.n_components) for g in stream_rngs(root_seed, seeds, "waves")])
             self.wave = (omega, amp, phases[where], np.array(w.rao))
         self.filter_every = self.every if s.hold == "measurement" else 1
+        self.interpolate = s.hold == "noise" and s.between_samples == "linear"
         b, a = tustin_notch(s.notch_w0, s.notch_wc, self.filter_every * sc.dt)
         self.notch = Biquad(b, a, (B, 3)) if s.notch else None
         self.x0 = np.tile(np.array(sc.initial.eta + sc.initial.nu + sc.initial.bias, dtype=float), (B, 1))
@@ -204,13 +210,19 @@ class DpWorld:
 
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
         """Update the GM errors every ``ts`` and the (filtered) measurement at its rate; hold in between."""
+        s = self.sc.sensors
         if k % self.every == 0:
             if k > 0:
-                self.gm = gm_step(self.gm, self.sigma, self.c, self.sc.sensors.ts, self.normals[:, self._sample])
+                self.gm = self.gm_next if self.interpolate else gm_step(self.gm, self.sigma, self.c, s.ts, self.normals[:, self._sample])
             self._sample += 1
+            if self.interpolate:  # the next eq. (48) sample, drawn from the same stream as 'hold' would
+                self.gm_next = gm_step(self.gm, self.sigma, self.c, s.ts, self.normals[:, self._sample])
         if k % self.filter_every:
             return
-        raw = x[:, :3] + self.wave_motion(t) + self.gm  # heading kept continuous (unwrapped) for the filter
+        error = self.gm
+        if self.interpolate:
+            error = self.gm + (k % self.every) / self.every * (self.gm_next - self.gm)
+        raw = x[:, :3] + self.wave_motion(t) + error  # heading kept continuous (unwrapped) for the filter
         if self.notch is not None:
             if k == 0:
                 self.notch.reset_to(raw)

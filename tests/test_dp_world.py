@@ -34,6 +34,24 @@ def test_stationary_gauss_markov_reading():
     assert np.allclose(lit.sigma[:, 0], 1.5) and np.allclose(lit.gm, 0)
 
 
+def test_gauss_markov_between_samples_hold_or_linear():
+    """'linear' passes through the same eq. (48) samples as 'hold' and interpolates in between."""
+    base = {"name": "g", "horizon": 5, "waves": None, "sensors": {"gnss_sigma": 1.0, "notch": False}}
+    x = np.zeros((2, 9))
+    ys = {}
+    for mode in ("hold", "linear"):
+        sc = DpScenario(**{**base, "sensors": {**base["sensors"], "between_samples": mode}})
+        w = DpWorld(sc, 3, np.arange(2))
+        ys[mode] = []
+        for k in range(81):
+            w.begin_step(k, k * sc.dt, x)
+            ys[mode].append(w.y.copy())
+    hold, lin = np.array(ys["hold"]), np.array(ys["linear"])
+    np.testing.assert_array_equal(hold[::20], lin[::20])  # identical at the 1 s samples
+    assert np.ptp(hold[1:20], axis=0).max() == 0  # staircase
+    np.testing.assert_allclose(lin[10], 0.5 * (hold[0] + hold[20]))  # halfway between samples
+
+
 def test_norm_integral_matches_numpy():
     rec = NormIntegral(["a", "psi"], np.array([2.0, 1.0]), {"psi"}, 1.0, 3.0, 0.5)
     rng = np.random.default_rng(0)
