@@ -13,7 +13,10 @@ yaw; R in m^2 and rad^2 (``shared/reference/baselines.md`` section 3.3).
 
 ``bias_units = "force"`` (N), ``"kN"``, ``"10kN"``, ``"100kN"`` or ``"MN"`` design on the model with the bias in that force unit
 (``nu_dot = ... + unit M^-1 b_unit``). The paper does not state its units; the gain's speed depends on
-them by orders of magnitude (force: slowest pole ~6e-5 rad/s; kN: ~2e-3; acceleration: ~0.6).
+them by orders of magnitude (force: slowest pole ~6e-5 rad/s; kN: ~2e-3; acceleration: ~0.6). The
+moment's unit is the force unit times ``moment_arm``: with 1 m (kN m with kN) the yaw channel of the
+supply vessel is ~30x slower than surge/sway (I_z/m ~ 400 m^2); a length of the order of the hull
+(bis-like: moment per F L) balances the three DOFs.
 """
 
 from __future__ import annotations
@@ -59,19 +62,24 @@ BiasUnits = Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"]
 FORCE_UNIT = {"force": 1.0, "kN": 1e3, "10kN": 1e4, "100kN": 1e5, "MN": 1e6}
 
 
-def kalman_gains(M: np.ndarray, D: np.ndarray, Q: np.ndarray, R: np.ndarray, bias_units: BiasUnits = "acceleration") -> DpGains:
+def kalman_gains(
+    M: np.ndarray, D: np.ndarray, Q: np.ndarray, R: np.ndarray, bias_units: BiasUnits = "acceleration",
+    moment_arm: float = 1.0,
+) -> DpGains:
+    """Steady-state Kalman gains; with a force unit F (``bias_units``) the yaw bias is designed in units of
+    ``F * moment_arm`` (1 m: F m, as N m goes with N)."""
     Minv = np.linalg.inv(M)
     A = np.zeros((9, 9))
     A[0:3, 6:9] = np.eye(3)
     A[6:9, 6:9] = -Minv @ D
-    unit = FORCE_UNIT.get(bias_units, 1.0)
-    A[6:9, 3:6] = np.eye(3) if bias_units == "acceleration" else unit * Minv
+    unit = FORCE_UNIT.get(bias_units, 1.0) * np.array([1.0, 1.0, moment_arm])
+    A[6:9, 3:6] = np.eye(3) if bias_units == "acceleration" else Minv * unit
     G = np.vstack([np.zeros((3, 3)), np.eye(3), np.zeros((3, 3))])
     P = solve_continuous_are(A.T, C_DP.T, G @ Q @ G.T, R)
     residual = A @ P + P @ A.T - P @ C_DP.T @ np.linalg.solve(R, C_DP @ P) + G @ Q @ G.T
     L0 = P @ C_DP.T @ np.linalg.inv(R)
     K1 = L0[0:3]
-    K2 = M @ L0[3:6] if bias_units == "acceleration" else unit * L0[3:6]
+    K2 = M @ L0[3:6] if bias_units == "acceleration" else unit[:, None] * L0[3:6]
     K3 = M @ L0[6:9]
     gains = DpGains(K1, K2, K3, float(np.abs(residual).max() / max(1.0, np.abs(P).max())), np.empty(0))
     poles = np.linalg.eigvals(dp_system(M, D) - gain_at(gains, M) @ C_DP)

@@ -40,6 +40,10 @@ class NpoTuning(BaseModel):
     bias_units: Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"] = Field(
         "acceleration", description="units of the bias in the Kalman design (the paper does not say; see design/kalman.py)"
     )
+    moment_arm: float = Field(
+        1.0, gt=0, description="the yaw bias is designed in (force unit x moment_arm) [m]: 1 gives kN m with kN; "
+        "about the hull length gives the three DOFs similar bandwidth (the bis footing, moment per F L)",
+    )
     discretization: Literal["predictor", "rk4"] = Field(
         "predictor",
         description="one-step map at the engine step: 'predictor' z+ = P_A z + H_A (B u + L (y - C z)) with the "
@@ -112,13 +116,13 @@ class DpObserver:
         B = len(tunings)
         self.dt, self.scale = dt, scale
         self.M, self.Minv, self.D = plant.M, plant.Minv, plant.D
-        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, t.discretization) for t in tunings]
+        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, t.moment_arm, t.discretization) for t in tunings]
         classes = sorted(set(keys), key=keys.index)
         self.class_of = np.array([classes.index(k) for k in keys])
         self.classes = []
-        for q, r, q2, units, scheme in classes:
-            g1 = kalman_gains(self.M, self.D, np.diag(q), np.diag(r), units)
-            g2 = kalman_gains(self.M, self.D, np.diag(np.multiply(q, q2)), np.diag(r), units)
+        for q, r, q2, units, arm, scheme in classes:
+            g1 = kalman_gains(self.M, self.D, np.diag(q), np.diag(r), units, arm)
+            g2 = kalman_gains(self.M, self.D, np.diag(np.multiply(q, q2)), np.diag(r), units, arm)
             K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
             self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, scheme)})
         self.poles = [p for c in self.classes for p in c["poles"]]
