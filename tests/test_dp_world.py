@@ -88,8 +88,8 @@ def test_fig1_ordering_with_noise_and_waves():
     """Torben Figs 1-2 on the committed tuning, shortened: resets cut the transient KPI by well over 30 %
     and leave no steady-state penalty once the transient is over (J over [300, 400) s within 10 %)."""
     exp, _ = load_experiment(CONFIG, ["scenario.horizon=400", "seeds=2", "figures=[]", "table.metrics=[J_tot_transient]",
-                                      "metrics=[{kind: j_tot, name: J_tot_transient, t_start: 50, t_end: 150}, "
-                                      "{kind: j_tot, name: J_late, t_start: 300}]"])
+                                      ("metrics=[{kind: j_tot, name: J_tot_transient, t_start: 50, t_end: 150}, "
+                                       "{kind: j_tot, name: J_late, t_start: 300}]")])
     m = run(exp, traces=False).metrics.groupby(["variant", "metric"])["value"].mean()
     assert m["resetting", "J_tot_transient"] < 0.7 * m["npo", "J_tot_transient"]
     assert m["resetting", "J_late"] < 1.1 * m["npo", "J_late"]
