@@ -28,7 +28,7 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     world = make_world(exp.model_copy(update={"variants": [v]}), np.array([0]), np.array([seed]))
     M, D = world.plant.M, world.plant.D
     Minv = np.linalg.inv(M)
-    units = (t_obs.bias_units, t_obs.moment_arm)
+    units = (t_obs.bias_units, sc.vessel.L if t_obs.moment_arm == "L" else t_obs.moment_arm)
     g = [kalman_gains(M, D, np.diag(t_obs.q), np.diag(t_obs.r), *units),
          kalman_gains(M, D, np.diag(np.multiply(t_obs.q, getattr(t_obs, "q2_scale", 1.0))), np.diag(t_obs.r), *units)]
     k = getattr(t_obs, "k", 0.0)

@@ -11,8 +11,9 @@ with an aggressive L2 that mismatch dominates z* (tested in tests/test_dp_world.
 resetting observer with k = 0 (z1 never jumps), exactly as the paper states.
 
 Tuning symbols: k -> ``k``, delta -> ``delta``, epsilon -> ``eps`` (times ``eps_scale``), c_max ->
-``c_max``; Q1, R1 -> ``q``, ``r``; Q2 = ``q2_scale`` Q1 (default 1e7: the "more aggressive" L2, see
-``design/kalman.py`` and baselines.md 3.3 for why the paper's 1e-7 is read as inverted).
+``c_max``; Q1, R1 -> ``q``, ``r`` (bias in ``bias_units``, yaw bias in ``bias_units`` x ``moment_arm``);
+Q2 = ``q2_scale`` Q1 (default 1e8: the "more aggressive" L2, see ``design/kalman.py`` and baselines.md 3.3
+for why the paper's 1e-7 is read as inverted).
 """
 
 from __future__ import annotations
@@ -38,11 +39,12 @@ class NpoTuning(BaseModel):
     q: Vec3 = Field((50.0, 50.0, 10.0), description="Q1 diagonal (bias process noise, acceleration units)")
     r: Vec3 = Field((15.0, 15.0, 1.0), description="R1 diagonal [m^2, m^2, rad^2]")
     bias_units: Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"] = Field(
-        "acceleration", description="units of the bias in the Kalman design (the paper does not say; see design/kalman.py)"
+        "10kN", description="units of the bias forces in the Kalman design (the paper does not say; calibrated, see "
+        "design/kalman.py and the README)"
     )
-    moment_arm: float = Field(
-        1.0, gt=0, description="the yaw bias is designed in (force unit x moment_arm) [m]: 1 gives kN m with kN; "
-        "about the hull length gives the three DOFs similar bandwidth (the bis footing, moment per F L)",
+    moment_arm: float | Literal["L"] = Field(
+        "L", description="the yaw bias is designed in (force unit x moment_arm): 'L' = the vessel's length (the bis "
+        "footing, moment per F L; the three DOFs get similar bandwidth), or a length in m (1: kN m with kN)",
     )
     discretization: Literal["predictor", "rk4"] = Field(
         "predictor",
@@ -57,7 +59,10 @@ class ResettingTuning(NpoTuning):
     """Resetting finite-time observer (Torben et al. Table I defaults)."""
 
     kind: Literal["resetting_fto"] = "resetting_fto"  # type: ignore[assignment]
-    q2_scale: float = Field(1e7, gt=0, description="Q2 = q2_scale * Q1 (1e-7 is the paper's literal value)")
+    q2_scale: float = Field(
+        1e8, gt=0, description="Q2 = q2_scale * Q1 (1e-7 is the paper's literal value; 1e8 gives the paper's bis-scaled "
+        "cond(I - Phi2 Phi1^-1) order, ~1e2 at delta = 2.5 s)",
+    )
     k: float = Field(0.7, ge=0, le=1, description="interpolation gain k")
     delta: float = Field(2.5, gt=0, description="reset time delta [s]")
     eps: Vec3 = Field((0.5, 0.5, 0.05), description="output error bounds epsilon [m, m, rad]")
@@ -116,7 +121,9 @@ class DpObserver:
         B = len(tunings)
         self.dt, self.scale = dt, scale
         self.M, self.Minv, self.D = plant.M, plant.Minv, plant.D
-        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, t.moment_arm, t.discretization) for t in tunings]
+        arm = {"L": plant.params.L}
+        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, arm.get(t.moment_arm, t.moment_arm), t.discretization)
+                for t in tunings]
         classes = sorted(set(keys), key=keys.index)
         self.class_of = np.array([classes.index(k) for k in keys])
         self.classes = []
