@@ -1,8 +1,8 @@
 """Plain per-run reference of the DP observers and the KPI, for equivalence tests and ``marinebench bench``.
 
-One run at a time, written as directly as the equations read: 9-vectors and 9 x 9 matrices, the RK4
-one-step maps (``observers.dp.one_step_maps``) formed from A_i(psi) at every step (no harmonic fit), the window logic with scalars, the
-jump with ``numpy.linalg.solve`` and ``cond``. The world (plant and sensors) is the same code as the
+One run at a time, written as directly as the equations read: 9-vectors and 9 x 9 matrices, the
+one-step maps (``observers.dp.one_step_maps``) formed from A_i(psi) at every step (no harmonic fit), the
+window logic with scalars, the jump with ``numpy.linalg.solve`` and ``cond``. The world (plant and sensors) is the same code as the
 batched engine with a batch of one, so both see identical measurements.
 """
 

@@ -36,7 +36,7 @@ class NpoTuning(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["npo"] = "npo"
-    q: Vec3 = Field((50.0, 50.0, 10.0), description="Q1 diagonal (bias process noise, acceleration units)")
+    q: Vec3 = Field((50.0, 50.0, 10.0), description="Q1 diagonal (bias process noise, in bias_units^2/s)")
     r: Vec3 = Field((15.0, 15.0, 1.0), description="R1 diagonal [m^2, m^2, rad^2]")
     bias_units: Literal["acceleration", "force", "kN", "10kN", "100kN", "MN"] = Field(
         "10kN", description="units of the bias forces in the Kalman design (the paper does not say; calibrated, see "
