@@ -178,6 +178,7 @@ class DpWorld:
             self.wave = (omega, amp, phases[where], np.array(w.rao))
         self.filter_every = self.every if s.hold == "measurement" else 1
         self.interpolate = s.hold == "noise" and s.between_samples == "linear"
+        self.gm_next = self.gm  # the next eq. (48) sample, for 'linear' (drawn at each sample instant)
         b, a = tustin_notch(s.notch_w0, s.notch_wc, self.filter_every * sc.dt)
         self.notch = Biquad(b, a, (B, 3)) if s.notch else None
         self.x0 = np.tile(np.array(sc.initial.eta + sc.initial.nu + sc.initial.bias, dtype=float), (B, 1))

@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from marinebench.config import Experiment
-from marinebench.design.kalman import dp_system, kalman_gains
+from marinebench.design.kalman import dp_system
 from marinebench.experiments.runner import make_world
 from marinebench.models.supply import bis_scale
 from marinebench.observers.base import wrap_angle
-from marinebench.observers.dp import one_step_maps
+from marinebench.observers.dp import gain_pair, one_step_maps
 
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
 
@@ -28,9 +28,7 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     world = make_world(exp.model_copy(update={"variants": [v]}), np.array([0]), np.array([seed]))
     M, D = world.plant.M, world.plant.D
     Minv = np.linalg.inv(M)
-    units = (t_obs.bias_units, sc.vessel.L if t_obs.moment_arm == "L" else t_obs.moment_arm)
-    g = [kalman_gains(M, D, np.diag(t_obs.q), np.diag(t_obs.r), *units),
-         kalman_gains(M, D, np.diag(np.multiply(t_obs.q, getattr(t_obs, "q2_scale", 1.0))), np.diag(t_obs.r), *units)]
+    g = gain_pair(t_obs.design_key(sc.vessel.L), M, D)
     k = getattr(t_obs, "k", 0.0)
     n_window = max(1, round(getattr(t_obs, "delta", 2.5) / sc.dt))
     eps = np.multiply(getattr(t_obs, "eps", (np.inf,) * 3), getattr(t_obs, "eps_scale", 1.0))

@@ -23,7 +23,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from marinebench.design.kalman import kalman_gains
+from marinebench.design.kalman import DpGains, kalman_gains
 from marinebench.observers.base import wrap_angle
 from marinebench.observers.fto import fto_jump, rk4_maps
 
@@ -53,6 +53,20 @@ class NpoTuning(BaseModel):
         "state exactly); 'rk4': the RK4 map of the closed loop A - L C with y held (O(dt^2) error mismatch, which "
         "an aggressive L2 turns into large jump errors)",
     )
+
+
+    def design_key(self, length: float) -> tuple:
+        """Everything the gains and one-step maps depend on, hashable: (Q1, R1, q2_scale, bias_units,
+        moment arm [m] with 'L' resolved to ``length``, discretization)."""
+        arm = length if self.moment_arm == "L" else self.moment_arm
+        return (self.q, self.r, getattr(self, "q2_scale", 1.0), self.bias_units, arm, self.discretization)
+
+
+def gain_pair(key: tuple, M: np.ndarray, D: np.ndarray) -> tuple[DpGains, DpGains]:
+    """Kalman gains L1 (Q1, R1) and L2 (q2_scale Q1, R1) for a :meth:`NpoTuning.design_key`."""
+    q, r, q2, units, arm, _scheme = key
+    return (kalman_gains(M, D, np.diag(q), np.diag(r), units, arm),
+            kalman_gains(M, D, np.diag(np.multiply(q, q2)), np.diag(r), units, arm))
 
 
 class ResettingTuning(NpoTuning):
@@ -121,17 +135,14 @@ class DpObserver:
         B = len(tunings)
         self.dt, self.scale = dt, scale
         self.M, self.Minv, self.D = plant.M, plant.Minv, plant.D
-        arm = {"L": plant.params.L}
-        keys = [(t.q, t.r, getattr(t, "q2_scale", 1.0), t.bias_units, arm.get(t.moment_arm, t.moment_arm), t.discretization)
-                for t in tunings]
+        keys = [t.design_key(plant.params.L) for t in tunings]
         classes = sorted(set(keys), key=keys.index)
         self.class_of = np.array([classes.index(k) for k in keys])
         self.classes = []
-        for q, r, q2, units, arm, scheme in classes:
-            g1 = kalman_gains(self.M, self.D, np.diag(q), np.diag(r), units, arm)
-            g2 = kalman_gains(self.M, self.D, np.diag(np.multiply(q, q2)), np.diag(r), units, arm)
+        for key in classes:
+            g1, g2 = gain_pair(key, self.M, self.D)
             K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
-            self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, scheme)})
+            self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, key[-1])})
         self.poles = [p for c in self.classes for p in c["poles"]]
         self.k = np.array([getattr(t, "k", 0.0) for t in tunings])
         delta = np.array([getattr(t, "delta", 2.5) for t in tunings])
