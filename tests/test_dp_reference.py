@@ -1,7 +1,8 @@
-"""The batched engine reproduces the plain per-run reference: same jump counts; J to 1e-13 without jumps
-and to 1e-7 with them. Each FTO jump solves with X_s, whose condition number is 5e6-1e9 for the kN-unit
-gains, so machine-precision differences between the fitted harmonic maps and the directly formed RK4
-maps (~1e-15) grow to 1e-9-1e-8 relative over a run (measured; see the issue note)."""
+"""The batched engine reproduces the plain per-run reference: same jump counts, J_tot to 1e-9 relative
+(measured: <= 1.3e-13 at every 3-point sweep value except delta = 3 steps). At delta = 3 steps each jump
+solves with cond(I - Phi2 Phi1^-1) ~ 7e8, which amplifies the ~1e-15 differences between the fitted
+harmonic maps and the directly formed RK4 maps to ~5e-9 (measured 4.6e-9 / 7.6e-9); that point is checked
+to the bound cond * 1e-16 ~ 1e-7 instead."""
 
 import numpy as np
 
@@ -18,13 +19,13 @@ CONFIG = ROOT / "configs" / "torben_fig3.yaml"
 def test_batched_equals_reference_on_sweep_points():
     base, _ = load_experiment(CONFIG, ["scenario.horizon=80"])
     exp = sweep_experiment(base, ["k", "delta", "eps"], None, 3, None, CONFIG)
-    picks = [1, 4, 9, 15]  # k = 0.5 dgnss, delta 0.15 s dgnss/dualband..., mixed points
+    picks = [1, 4, 6, 9, 15]  # k = 0 dual-band, k = 1 dgnss, delta = 3 steps dgnss, delta = 1.2 s dual-band, c_eps = 1 dual-band
     exp = exp.model_copy(update={"variants": [exp.variants[i] for i in picks]})
     batched = run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
     for i, v in enumerate(exp.variants):
         ref = reference_run(exp, i)
         for metric in ("J_tot", "J_tot_steady"):
-            tol = 1e-7 if ref["n_jumps"] else 1e-12
+            tol = 1e-7 if v.name.startswith("delta_000") else 1e-9
             assert np.isclose(batched[v.name, metric], ref[metric], rtol=tol, atol=0), (v.name, metric)
         assert batched[v.name, "n_jumps"] == ref["n_jumps"], v.name
     assert sum(reference_run(exp, i)["n_jumps"] for i in range(len(picks))) > 0  # resets were exercised
