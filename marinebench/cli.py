@@ -97,6 +97,8 @@ def sweep(
     horizon: Annotated[float | None, typer.Option(help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>_sweep/")] = None,
     seed: Annotated[int | None, typer.Option(help="root seed")] = None,
+    seeds: Annotated[int | None, typer.Option(help="Monte-Carlo runs per point (default: the config's); >1 writes "
+                                               "<stem>_sweep_<N>seeds/ with intervals")] = None,
     chunk_size: Annotated[int, typer.Option(help="runs per batch; finished batches survive an interruption")] = 300,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
@@ -114,18 +116,21 @@ def sweep(
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
         fail("--horizon: must be positive")
+    if seeds is not None and seeds < 1:
+        fail("--seeds: at least 1")
     try:
-        base, _ = _load(config, [], seed, None)
+        base, _ = _load(config, [], seed, seeds)
         exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
         from marinebench.config import preflight
 
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
-    target = (out_dir if out_dir is not None else Path("results")) / f"{config.stem}_sweep"
+    target = (out_dir if out_dir is not None else Path("results")) / (f"{config.stem}_sweep"
+                                                                     + (f"_{exp.seeds}seeds" if exp.seeds > 1 else ""))
     t0 = _time.perf_counter()
     with Progress(
-        TextColumn(f"sweep {len(exp.variants)} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+        TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
         TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
     ) as bar:
         task = bar.add_task("sweep", total=1)
@@ -135,17 +140,18 @@ def sweep(
     metric = base.sweep.metric
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "table.md").write_text(sweep_table(metrics, metric))
+        (tmp / "table.md").write_text(sweep_table(metrics, metric, base.sweep))
         (tmp / "figures").mkdir()
         sweep_figure(metrics, metric, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
-            experiment=exp.name, config_files={"experiment": str(config)}, seed=exp.seed, runs=len(exp.variants),
+            experiment=exp.name, config_files={"experiment": str(config)}, seed=exp.seed, seeds=exp.seeds,
+            runs=len(exp.variants) * exp.seeds,
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3), assumptions=list(base.assumptions)))
     discard_partial(target)
     if not quiet:
-        out.print(f"sweep: {len(exp.variants)} runs x {exp.scenario.horizon:g} s in {wall:.1f} s of simulation "
+        out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {wall:.1f} s of simulation "
                   f"({ran} batch(es) run) -> {target}", markup=False)
 
 

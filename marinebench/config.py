@@ -220,12 +220,24 @@ class SweepParam(BaseModel):
     range: tuple[float, float]
     spacing: Literal["linear", "log"] = "linear"
     fixed: dict[str, Any] = Field(default_factory=dict, description="other observer fields set for this sweep")
+    probes: list[float] = Field(
+        default_factory=list, description="values at which table.md reports the KPI (interpolated in the spacing), "
+        "each beside the first probe's, e.g. k: [0, 0.7] for 'k = 0.7 against k = 0'"
+    )
+    trend: tuple[float, float] | None = Field(
+        None, description="sub-range over which table.md reports the Spearman rank correlation of the KPI with the value"
+    )
 
     @model_validator(mode="after")
     def _range(self) -> SweepParam:
         lo, hi = self.range
         if lo > hi or (self.spacing == "log" and lo <= 0):
             raise ValueError(f"bad range {self.range} for {self.spacing} spacing")
+        outside = [v for v in [*self.probes, *(self.trend or ())] if not lo <= v <= hi]
+        if outside:
+            raise ValueError(f"probe/trend values {outside} outside the range {self.range}")
+        if self.trend is not None and self.trend[0] >= self.trend[1]:
+            raise ValueError(f"trend {self.trend}: the lower end must be below the upper")
         return self
 
     def values(self, n: int):

@@ -139,6 +139,13 @@ def test_sweep_cli_tiny_grid(tmp_path):
     assert len(j) == 2 * 2 * 2 and set(j["param"]) == {"k", "eps"} and set(j["gnss"]) == {"dgnss", "dualband"}
     assert sorted(j[j["param"] == "k"]["param_value"].unique()) == [0.0, 1.0]
     assert (d / "figures" / "sweep.png").exists() and "| k | dgnss |" in (d / "table.md").read_text()
+    assert "### J_tot at the probe values" in (d / "table.md").read_text()  # the config's probes (k = 0, 0.7, 1)
+    mc = CliRunner().invoke(app, ["sweep", "k", "--config", str(cfg), "--n", "2", "--horizon", "20", "--gnss", "dgnss",
+                                  "--seeds", "2", "--out", str(tmp_path), "--quiet"])
+    assert mc.exit_code == 0, mc.output
+    d2 = tmp_path / "torben_fig3_sweep_2seeds"  # a Monte-Carlo sweep does not replace the one-seed sweep
+    assert sorted(pd.read_csv(d2 / "metrics.csv")["seed"].unique()) == [0, 1] and (d / "metrics.csv").exists()
+    assert "2 runs per point" in (d2 / "table.md").read_text()
     bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "unknown parameter" in bad.output and "sweepable" in bad.output
 

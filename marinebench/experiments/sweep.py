@@ -14,16 +14,22 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
 from pydantic import ValidationError
+from scipy.stats import spearmanr
 
-from marinebench.config import Experiment, Variant
+from marinebench.config import Experiment, SweepSpec, Variant
 from marinebench.errors import ConfigError
+from marinebench.metrics.stats import mean_ci
 
 
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
                      horizon: float | None, file: Path) -> Experiment:
-    """The experiment whose variants are the sweep's points (one seed each by default)."""
+    """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
+
+    With more than one seed the experiment (and its output folder) is named ``<name>_sweep_<seeds>seeds``,
+    so a Monte-Carlo sweep does not replace the one-seed sweep."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
@@ -49,45 +55,114 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
             for g in groups:
                 variants.append(Variant(name=f"{p}_{i:03d}_{g}", observer=observer, world=spec.groups[g],
                                         tags={"param": p, "param_value": float(value), "gnss": g}))
-    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": f"{exp.name}_sweep"}
+    name = f"{exp.name}_sweep" + (f"_{exp.seeds}seeds" if exp.seeds > 1 else "")
+    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": name}
     scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
     update["scenario"] = scenario
     return exp.model_copy(update=update)
 
 
-def sweep_table(metrics: pd.DataFrame, metric: str) -> str:
-    df = metrics[metrics["metric"] == metric]
+def _per_seed_curves(metrics: pd.DataFrame, metric: str) -> dict[tuple[str, str], pd.DataFrame]:
+    """KPI per (param, gnss), in sweep order: rows are the parameter values (sorted), columns the seeds;
+    NaN where a run diverged."""
+    df = metrics[metrics["metric"] == metric].copy()
+    df.loc[df["status"] != "ok", "value"] = np.nan
+    return {key: d.pivot(index="param_value", columns="seed", values="value").sort_index()
+            for key, d in df.groupby(["param", "gnss"], sort=False)}
+
+
+def _at(curve: pd.DataFrame, value: float, log: bool) -> np.ndarray:
+    """Each seed's KPI at ``value``, interpolated linearly in the value (in its log for log spacing)."""
+    x = curve.index.to_numpy(dtype=float)
+    x, v = (np.log(x), np.log(value)) if log else (x, value)
+    return np.array([np.interp(v, x, curve[c].to_numpy(dtype=float)) for c in curve.columns])
+
+
+def _fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
+    f = (lambda x: f"{100 * x:+.1f} %") if pct else (lambda x: f"{x:.4g}")
+    return f(m) if not np.isfinite(lo) else f"{f(m)} [{f(lo)}, {f(hi)}]"
+
+
+def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = None) -> str:
+    """table.md: range of the seed-mean curve per parameter and group; with ``spec``, the KPI at each
+    parameter's probe values (and its change against the first probe, paired over seeds), the Spearman
+    rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first."""
+    curves = _per_seed_curves(metrics, metric)
+    n_seeds = max(c.shape[1] for c in curves.values())
     lines = [f"## Sweep: {metric} vs each parameter", "",
-             "One run per point (seed index 0); ‘best’ is the value with the lowest KPI.", "",
+             (f"{n_seeds} runs per point (seeds 0..{n_seeds - 1}); curves are the mean over seeds, with 95 % "
+              "Student-t intervals over seeds in brackets" if n_seeds > 1 else "One run per point (seed index 0)")
+             + "; min/max are those of the curve.", "",
              "| param | gnss | points | min | at value | max | at value | diverged |", "|---|---|---|---|---|---|---|---|"]
-    for (p, g), d in df.groupby(["param", "gnss"], sort=False):
-        ok = d[d["status"] == "ok"]
-        if ok.empty:
-            lines.append(f"| {p} | {g} | {len(d)} | – | – | – | – | {len(d)} |")
+    for (p, g), c in curves.items():
+        m, diverged = c.mean(axis=1), int(c.isna().to_numpy().sum())
+        if m.isna().all():
+            lines.append(f"| {p} | {g} | {len(m)} | – | – | – | – | {diverged} |")
             continue
-        lo, hi = ok.loc[ok["value"].idxmin()], ok.loc[ok["value"].idxmax()]
-        lines.append(f"| {p} | {g} | {len(d)} | {lo['value']:.4g} | {lo['param_value']:.4g} | {hi['value']:.4g} | "
-                     f"{hi['param_value']:.4g} | {int((d['status'] != 'ok').sum())} |")
+        lines.append(f"| {p} | {g} | {len(m)} | {m.min():.4g} | {m.idxmin():.4g} | {m.max():.4g} | {m.idxmax():.4g} | {diverged} |")
+    if spec is None:
+        return "\n".join(lines) + "\n"
+    probe_rows, trend_rows = [], []
+    for (p, g), c in curves.items():
+        ps = spec.params.get(p)
+        if ps is None:
+            continue
+        log = ps.spacing == "log"
+        if ps.probes:
+            first = _at(c, ps.probes[0], log)
+            for v in ps.probes:
+                at = _at(c, v, log)
+                change = "–" if v == ps.probes[0] else _fmt(*mean_ci(at / first - 1), pct=True)
+                probe_rows.append(f"| {p} | {g} | {v:g} | {_fmt(*mean_ci(at))} | {change} |")
+        if ps.trend is not None:
+            x = c.index.to_numpy(dtype=float)
+            inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
+            rho = f"{spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic:+.2f}" if inside.sum() > 2 else "–"
+            trend_rows.append(f"| {p} | {g} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
+    if probe_rows:
+        lines += ["", f"### {metric} at the probe values", "",
+                  ("Interpolated between sweep points (in the log of the value for log spacing); the change is against "
+                  "the first probe, per seed, then averaged."), "",
+                  f"| param | gnss | value | {metric} | change vs first probe |", "|---|---|---|---|---|", *probe_rows]
+    if trend_rows:
+        lines += ["", "### Trends", "", ("Spearman rank correlation of the mean curve with the value over the range "
+                  "(+1: grows monotonically)."), "", "| param | gnss | range | points | Spearman ρ |",
+                  "|---|---|---|---|---|", *trend_rows]
+    groups = list(dict.fromkeys(g for _, g in curves))
+    if len(groups) > 1:
+        lines += ["", "### Between groups", "", f"Ratio of the mean curves, point by point, against `{groups[0]}`.", "",
+                  "| param | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|"]
+        for p in dict.fromkeys(p for p, _ in curves):
+            for g in groups[1:]:
+                if (p, g) in curves and (p, groups[0]) in curves:
+                    r = curves[p, g].mean(axis=1) / curves[p, groups[0]].mean(axis=1)
+                    lines.append(f"| {p} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} |")
     return "\n".join(lines) + "\n"
 
 
 def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path) -> None:
-    """Fig. 3 layout: one panel per parameter, the KPI against the value, one curve per group."""
-    df = metrics[(metrics["metric"] == metric) & (metrics["signal"] == "z")]
-    params = list(dict.fromkeys(df["param"]))
+    """Fig. 3 layout: one panel per parameter, the KPI against the value, one curve per group (the mean
+    over seeds, with the seeds' range shaded when there are several)."""
+    curves = _per_seed_curves(metrics[metrics["signal"] == "z"], metric)
+    params = list(dict.fromkeys(p for p, _ in curves))
     fig, axes = plt.subplots(len(params), 1, figsize=(7, 2.6 * len(params)), squeeze=False)
     for ax, p in zip(axes[:, 0], params):
-        d = df[df["param"] == p]
-        for g, dg in d.groupby("gnss", sort=False):
-            dg = dg.sort_values("param_value")
-            ax.plot(dg["param_value"], dg["value"], ".-", ms=3, lw=1, label=g)
+        for (q, g), c in curves.items():
+            if q != p:
+                continue
+            x = c.index.to_numpy(dtype=float)
+            (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=g)
+            if c.shape[1] > 1:
+                ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
         if exp.sweep.params[p].spacing == "log":
             ax.set_xscale("log")
         ax.set_xlabel(p)
         ax.set_ylabel(metric)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{exp.name}: {metric} sensitivity (one parameter at a time)", fontsize=10)
+    n_seeds = max(c.shape[1] for c in curves.values())
+    seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
+    fig.suptitle(f"{exp.name}: {metric} sensitivity (one parameter at a time{seeds})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -115,7 +190,8 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         shutil.rmtree(partial)  # a different sweep was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
-    chunks = [exp.variants[i : i + chunk_size] for i in range(0, len(exp.variants), chunk_size)]
+    per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
+    chunks = [exp.variants[i : i + per_chunk] for i in range(0, len(exp.variants), per_chunk)]
     n_steps = round(exp.scenario.horizon / exp.scenario.dt)
     if on_start is not None:
         on_start(n_steps * len(chunks))

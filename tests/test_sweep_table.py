@@ -1,0 +1,57 @@
+"""The sweep's table.md: probe values interpolated per seed, paired changes, trends and group ratios,
+checked on a synthetic metrics table whose curves are known in closed form."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from marinebench.config import SweepParam, SweepSpec
+from marinebench.experiments.sweep import sweep_table
+
+
+def synthetic(seeds=(0, 1)) -> pd.DataFrame:
+    """J = (10 - 5 k) (1 + 0.1 seed) for 'a', twice that for 'b'; J = delta (1 + 0.1 seed) on a log grid."""
+    rows = []
+    for s in seeds:
+        for g, f in (("a", 1.0), ("b", 2.0)):
+            for k in np.linspace(0, 1, 11):
+                rows.append(("k", k, g, s, f * (10 - 5 * k) * (1 + 0.1 * s)))
+            for d in np.geomspace(0.1, 10, 9):
+                rows.append(("delta", d, g, s, f * d * (1 + 0.1 * s)))
+    df = pd.DataFrame(rows, columns=["param", "param_value", "gnss", "seed", "value"])
+    return df.assign(metric="J_tot", signal="z", status="ok")
+
+
+SPEC = SweepSpec(variant="x", params={
+    "k": SweepParam(key="k", range=(0, 1), probes=[0.0, 0.75]),
+    "delta": SweepParam(key="delta", range=(0.1, 10), spacing="log", probes=[1.0, 10.0], trend=(1.0, 10.0)),
+})
+
+
+def row(table: str, *cells: str) -> list[str]:
+    for line in table.splitlines():
+        parts = [c.strip() for c in line.strip("|").split("|")]
+        if parts[: len(cells)] == list(cells):
+            return parts
+    raise AssertionError(f"no row {cells} in\n{table}")
+
+
+def test_probes_changes_trends_and_group_ratios():
+    t = sweep_table(synthetic(), "J_tot", SPEC)
+    # k = 0.75 lies between grid points 0.7 and 0.8: linear interpolation is exact for a linear curve
+    mean_at = np.mean([(10 - 3.75) * 1.0, (10 - 3.75) * 1.1])
+    assert row(t, "k", "a", "0.75")[3].startswith(f"{mean_at:.4g} [")
+    assert row(t, "k", "a", "0.75")[4].startswith("-37.5 % [-37.5 %, -37.5 %]")  # paired: the seed factor cancels
+    # log spacing: J = delta is linear in delta but interpolated in log(delta) between grid points; 1 and 10 are on the grid
+    assert row(t, "delta", "b", "10")[4].startswith("+900.0 %")
+    assert row(t, "delta", "a", "[1, 10]")[4] == "+1.00"
+    assert row(t, "k", "b / a")[2:] == ["2", "0", "2", "0"]
+
+
+def test_one_seed_has_no_intervals_and_bad_probes_are_refused():
+    t = sweep_table(synthetic(seeds=(0,)), "J_tot", SPEC)
+    assert "One run per point" in t and row(t, "k", "a", "0.75")[3:] == ["6.25", "-37.5 %"]
+    with pytest.raises(ValueError, match="outside the range"):
+        SweepParam(key="k", range=(0, 1), probes=[1.5])
+    with pytest.raises(ValueError, match="lower end"):
+        SweepParam(key="k", range=(0, 1), trend=(0.8, 0.2))
