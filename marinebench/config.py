@@ -257,6 +257,7 @@ class SweepSpec(BaseModel):
         default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
     )
     metric: str = Field("J_tot", description="metric plotted against each parameter")
+    signals: list[str] | None = Field(None, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
 
 

@@ -40,18 +40,37 @@ def test_probes_changes_trends_and_group_ratios():
     t = sweep_table(synthetic(), "J_tot", SPEC)
     # k = 0.75 lies between grid points 0.7 and 0.8: linear interpolation is exact for a linear curve
     mean_at = np.mean([(10 - 3.75) * 1.0, (10 - 3.75) * 1.1])
-    assert row(t, "k", "a", "0.75")[3].startswith(f"{mean_at:.4g} [")
-    assert row(t, "k", "a", "0.75")[4].startswith("-37.5 % [-37.5 %, -37.5 %]")  # paired: the seed factor cancels
+    assert row(t, "k", "a", "z", "0.75")[4].startswith(f"{mean_at:.4g} [")
+    assert row(t, "k", "a", "z", "0.75")[5].startswith("-37.5 % [-37.5 %, -37.5 %]")  # paired: the seed factor cancels
     # log spacing: J = delta is linear in delta but interpolated in log(delta) between grid points; 1 and 10 are on the grid
-    assert row(t, "delta", "b", "10")[4].startswith("+900.0 %")
-    assert row(t, "delta", "a", "[1, 10]")[4] == "+1.00"
-    assert row(t, "k", "b / a")[2:] == ["2", "0", "2", "0"]
+    assert row(t, "delta", "b", "z", "10")[5].startswith("+900.0 %")
+    assert row(t, "delta", "a", "z", "[1, 10]")[5] == "+1.00"
+    assert row(t, "k", "z", "b / a")[3:] == ["2", "0", "2", "0"]
 
 
 def test_one_seed_has_no_intervals_and_bad_probes_are_refused():
     t = sweep_table(synthetic(seeds=(0,)), "J_tot", SPEC)
-    assert "One run per point" in t and row(t, "k", "a", "0.75")[3:] == ["6.25", "-37.5 %"]
+    assert "One run per point" in t and row(t, "k", "a", "z", "0.75")[4:] == ["6.25", "-37.5 %"]
     with pytest.raises(ValueError, match="outside the range"):
         SweepParam(key="k", range=(0, 1), probes=[1.5])
     with pytest.raises(ValueError, match="lower end"):
         SweepParam(key="k", range=(0, 1), trend=(0.8, 0.2))
+
+
+def test_other_observers_sweep_the_same_way(tmp_path):
+    """The issue's example: `marinebench sweep --config configs/bejarano_table4.yaml delta_p1`."""
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    from .conftest import ROOT
+
+    res = CliRunner().invoke(app, ["sweep", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "delta_p1",
+                                   "--n", "2", "--horizon", "8", "--seeds", "1", "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    d = tmp_path / "bejarano_table4_sweep"
+    m = pd.read_csv(d / "metrics.csv")
+    std = m[m["metric"] == "std"]
+    assert sorted(std["param_value"].unique()) == [0.2, 5.0] and {"u", "v", "sigma_u", "sigma_v"} <= set(std["signal"])
+    table = (d / "table.md").read_text()
+    assert row(table, "delta_p1", "default", "sigma_u", "1.2")[4] != "–" and (d / "figures" / "sweep.png").exists()

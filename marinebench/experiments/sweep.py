@@ -62,13 +62,17 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     return exp.model_copy(update=update)
 
 
-def _per_seed_curves(metrics: pd.DataFrame, metric: str) -> dict[tuple[str, str], pd.DataFrame]:
-    """KPI per (param, gnss), in sweep order: rows are the parameter values (sorted), columns the seeds;
-    NaN where a run diverged."""
-    df = metrics[metrics["metric"] == metric].copy()
+Curves = dict[tuple[str, str, str], pd.DataFrame]
+
+
+def _per_seed_curves(metrics: pd.DataFrame, metric: str, signals: list[str] | None = None) -> Curves:
+    """The KPI per (param, group, signal), in sweep order: rows are the parameter values (sorted), columns
+    the seeds; NaN where a run diverged. ``signals`` restricts the metric's signals (default: all)."""
+    df = metrics[(metrics["metric"] == metric) & (metrics["signal"].isin(signals) if signals else True)].copy()
     df.loc[df["status"] != "ok", "value"] = np.nan
-    return {key: d.pivot(index="param_value", columns="seed", values="value").sort_index()
-            for key, d in df.groupby(["param", "gnss"], sort=False)}
+    order = [{v: i for i, v in enumerate(dict.fromkeys(df[c]))} for c in ("param", "gnss", "signal")]
+    groups = sorted(df.groupby(["param", "gnss", "signal"], sort=False), key=lambda kd: [o[k] for o, k in zip(order, kd[0])])
+    return {key: d.pivot(index="param_value", columns="seed", values="value").sort_index() for key, d in groups}
 
 
 def _at(curve: pd.DataFrame, value: float, log: bool) -> np.ndarray:
@@ -84,26 +88,30 @@ def _fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
 
 
 def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = None) -> str:
-    """table.md: range of the seed-mean curve per parameter and group; with ``spec``, the KPI at each
-    parameter's probe values (and its change against the first probe, paired over seeds), the Spearman
-    rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first."""
-    curves = _per_seed_curves(metrics, metric)
+    """table.md: range of the seed-mean curve per parameter, group and signal; with ``spec``, the KPI at
+    each parameter's probe values (and its change against the first probe, paired over seeds), the
+    Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first."""
+    curves = _per_seed_curves(metrics, metric, spec.signals if spec else None)
+    if not curves:
+        return f"## Sweep: {metric} vs each parameter\n\nNo values of metric '{metric}'.\n"
     n_seeds = max(c.shape[1] for c in curves.values())
     lines = [f"## Sweep: {metric} vs each parameter", "",
              (f"{n_seeds} runs per point (seeds 0..{n_seeds - 1}); curves are the mean over seeds, with 95 % "
               "Student-t intervals over seeds in brackets" if n_seeds > 1 else "One run per point (seed index 0)")
              + "; min/max are those of the curve.", "",
-             "| param | gnss | points | min | at value | max | at value | diverged |", "|---|---|---|---|---|---|---|---|"]
-    for (p, g), c in curves.items():
+             "| param | gnss | signal | points | min | at value | max | at value | diverged |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for (p, g, sig), c in curves.items():
         m, diverged = c.mean(axis=1), int(c.isna().to_numpy().sum())
         if m.isna().all():
-            lines.append(f"| {p} | {g} | {len(m)} | – | – | – | – | {diverged} |")
+            lines.append(f"| {p} | {g} | {sig} | {len(m)} | – | – | – | – | {diverged} |")
             continue
-        lines.append(f"| {p} | {g} | {len(m)} | {m.min():.4g} | {m.idxmin():.4g} | {m.max():.4g} | {m.idxmax():.4g} | {diverged} |")
+        lines.append(f"| {p} | {g} | {sig} | {len(m)} | {m.min():.4g} | {m.idxmin():.4g} | {m.max():.4g} | "
+                     f"{m.idxmax():.4g} | {diverged} |")
     if spec is None:
         return "\n".join(lines) + "\n"
     probe_rows, trend_rows = [], []
-    for (p, g), c in curves.items():
+    for (p, g, sig), c in curves.items():
         ps = spec.params.get(p)
         if ps is None:
             continue
@@ -113,45 +121,48 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
             for v in ps.probes:
                 at = _at(c, v, log)
                 change = "–" if v == ps.probes[0] else _fmt(*mean_ci(at / first - 1), pct=True)
-                probe_rows.append(f"| {p} | {g} | {v:g} | {_fmt(*mean_ci(at))} | {change} |")
+                probe_rows.append(f"| {p} | {g} | {sig} | {v:g} | {_fmt(*mean_ci(at))} | {change} |")
         if ps.trend is not None:
             x = c.index.to_numpy(dtype=float)
             inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
             rho = f"{spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic:+.2f}" if inside.sum() > 2 else "–"
-            trend_rows.append(f"| {p} | {g} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
+            trend_rows.append(f"| {p} | {g} | {sig} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
     if probe_rows:
         lines += ["", f"### {metric} at the probe values", "",
                   ("Interpolated between sweep points (in the log of the value for log spacing); the change is against "
-                  "the first probe, per seed, then averaged."), "",
-                  f"| param | gnss | value | {metric} | change vs first probe |", "|---|---|---|---|---|", *probe_rows]
+                   "the first probe, per seed, then averaged."), "",
+                  f"| param | gnss | signal | value | {metric} | change vs first probe |", "|---|---|---|---|---|---|",
+                  *probe_rows]
     if trend_rows:
         lines += ["", "### Trends", "", ("Spearman rank correlation of the mean curve with the value over the range "
-                  "(+1: grows monotonically)."), "", "| param | gnss | range | points | Spearman ρ |",
-                  "|---|---|---|---|---|", *trend_rows]
-    groups = list(dict.fromkeys(g for _, g in curves))
+                  "(+1: grows monotonically)."), "", "| param | gnss | signal | range | points | Spearman ρ |",
+                  "|---|---|---|---|---|---|", *trend_rows]
+    groups = list(dict.fromkeys(g for _, g, _ in curves))
     if len(groups) > 1:
         lines += ["", "### Between groups", "", f"Ratio of the mean curves, point by point, against `{groups[0]}`.", "",
-                  "| param | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|"]
-        for p in dict.fromkeys(p for p, _ in curves):
+                  "| param | signal | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|---|"]
+        for p, sig in dict.fromkeys((p, sig) for p, _, sig in curves):
             for g in groups[1:]:
-                if (p, g) in curves and (p, groups[0]) in curves:
-                    r = curves[p, g].mean(axis=1) / curves[p, groups[0]].mean(axis=1)
-                    lines.append(f"| {p} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} |")
+                if (p, g, sig) in curves and (p, groups[0], sig) in curves:
+                    r = curves[p, g, sig].mean(axis=1) / curves[p, groups[0], sig].mean(axis=1)
+                    lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | "
+                                 f"{r.idxmax():.4g} |")
     return "\n".join(lines) + "\n"
 
 
 def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path) -> None:
-    """Fig. 3 layout: one panel per parameter, the KPI against the value, one curve per group (the mean
-    over seeds, with the seeds' range shaded when there are several)."""
-    curves = _per_seed_curves(metrics[metrics["signal"] == "z"], metric)
-    params = list(dict.fromkeys(p for p, _ in curves))
-    fig, axes = plt.subplots(len(params), 1, figsize=(7, 2.6 * len(params)), squeeze=False)
+    """Fig. 3 layout: one panel per parameter, the KPI against the value, one curve per group (and signal,
+    when there are several): the mean over seeds, with the seeds' range shaded when there are several."""
+    curves = _per_seed_curves(metrics, metric, exp.sweep.signals)
+    params = list(dict.fromkeys(p for p, _, _ in curves))
+    n_groups, n_signals = len({g for _, g, _ in curves}), len({sig for _, _, sig in curves})
+    fig, axes = plt.subplots(max(1, len(params)), 1, figsize=(7, 2.6 * max(1, len(params))), squeeze=False)
     for ax, p in zip(axes[:, 0], params):
-        for (q, g), c in curves.items():
+        for (q, g, sig), c in curves.items():
             if q != p:
                 continue
             x = c.index.to_numpy(dtype=float)
-            (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=g)
+            (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=g if n_signals == 1 else sig if n_groups == 1 else f"{g}, {sig}")
             if c.shape[1] > 1:
                 ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
         if exp.sweep.params[p].spacing == "log":
@@ -160,7 +171,7 @@ def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path
         ax.set_ylabel(metric)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    n_seeds = max(c.shape[1] for c in curves.values())
+    n_seeds = max((c.shape[1] for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
     fig.suptitle(f"{exp.name}: {metric} sensitivity (one parameter at a time{seeds})", fontsize=10)
     fig.tight_layout()
