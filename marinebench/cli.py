@@ -107,7 +107,14 @@ def sweep(
     Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches."""
     import time as _time
 
-    from marinebench.experiments.sweep import discard_partial, run_chunked, sweep_experiment, sweep_figure, sweep_table
+    from marinebench.experiments.sweep import (
+        discard_partial,
+        run_chunked,
+        sweep_experiment,
+        sweep_figure,
+        sweep_name,
+        sweep_table,
+    )
     from marinebench.results.writer import atomic_directory, manifest
 
     if chunk_size < 1:
@@ -126,8 +133,7 @@ def sweep(
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
-    target = (out_dir if out_dir is not None else Path("results")) / (f"{config.stem}_sweep"
-                                                                     + (f"_{exp.seeds}seeds" if exp.seeds > 1 else ""))
+    target = (out_dir if out_dir is not None else Path("results")) / sweep_name(config.stem, exp.seeds)
     t0 = _time.perf_counter()
     with Progress(
         TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),

@@ -24,6 +24,11 @@ from marinebench.errors import ConfigError
 from marinebench.metrics.stats import mean_ci
 
 
+def sweep_name(base: str, seeds: int) -> str:
+    """``<base>_sweep``, or ``<base>_sweep_<seeds>seeds`` for a Monte-Carlo sweep (so it keeps its own folder)."""
+    return f"{base}_sweep" + (f"_{seeds}seeds" if seeds > 1 else "")
+
+
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
                      horizon: float | None, file: Path) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
@@ -55,8 +60,7 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
             for g in groups:
                 variants.append(Variant(name=f"{p}_{i:03d}_{g}", observer=observer, world=spec.groups[g],
                                         tags={"param": p, "param_value": float(value), "gnss": g}))
-    name = f"{exp.name}_sweep" + (f"_{exp.seeds}seeds" if exp.seeds > 1 else "")
-    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": name}
+    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": sweep_name(exp.name, exp.seeds)}
     scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
     update["scenario"] = scenario
     return exp.model_copy(update=update)
