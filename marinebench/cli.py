@@ -99,6 +99,7 @@ def sweep(
     seed: Annotated[int | None, typer.Option(help="root seed")] = None,
     seeds: Annotated[int | None, typer.Option(help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
     chunk_size: Annotated[int, typer.Option(help="runs per batch; finished batches survive an interruption")] = 300,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
@@ -106,6 +107,8 @@ def sweep(
 
     Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches."""
     import time as _time
+
+    import yaml
 
     from marinebench.experiments.sweep import (
         discard_partial,
@@ -126,7 +129,7 @@ def sweep(
     if seeds is not None and seeds < 1:
         fail("--seeds: at least 1")
     try:
-        base, _ = _load(config, [], seed, seeds)
+        base, _ = _load(config, set_ or [], seed, seeds)
         exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
         from marinebench.config import preflight
 
@@ -146,11 +149,12 @@ def sweep(
     metric = base.sweep.metric
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(base.model_dump(mode="json"), sort_keys=False, allow_unicode=True))
         (tmp / "table.md").write_text(sweep_table(metrics, metric, base.sweep))
         (tmp / "figures").mkdir()
         sweep_figure(metrics, metric, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
-            experiment=exp.name, config_files={"experiment": str(config)}, seed=exp.seed, seeds=exp.seeds,
+            experiment=exp.name, config_files={"experiment": str(config)}, overrides=set_ or [], seed=exp.seed, seeds=exp.seeds,
             runs=len(exp.variants) * exp.seeds,
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, wall_time_s=round(wall, 3),

@@ -505,21 +505,45 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
     return _deep_merge(read_scenario(spath), overrides)
 
 
-def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None) -> tuple[dict, dict[str, Path]]:
-    """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins)."""
+def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dict, dict[str, Path]]:
+    """The resolved document of the experiment named by ``from:`` (relative path), without its name."""
+    ref = doc.pop("from")
+    if not isinstance(ref, str):
+        raise ConfigError(path, "from", "expected an experiment file path")
+    bpath = (path.parent / ref).resolve()
+    if bpath in seen or bpath == path.resolve():
+        raise ConfigError(path, "from", f"circular experiment reference to {ref}")
+    if not bpath.exists():
+        raise ConfigError(path, "from", f"experiment file not found: {ref}")
+    base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
+    base.pop("name", None)  # the derived file is its own experiment
+    return base, {**{k: v for k, v in origins.items() if k}, "from": bpath}
+
+
+def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None,
+                     _seen: tuple[Path, ...] = ()) -> tuple[dict, dict[str, Path]]:
+    """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins).
+
+    ``from: other.yaml`` starts from that experiment (its scenario resolved relative to it) and merges this
+    file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
     doc = _read_yaml(path)
-    if profile is not None:
-        profiles = doc.get("profiles") or {}
-        if profile not in profiles:
-            raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
-        sets = list(profiles[profile]) + list(sets)
-    origins = {"": path}
-    doc.setdefault("name", path.stem)
+    base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
+    origins[""] = path
+    if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
+        for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
+            origins["override " + dotted] = path
     if "scenario" in doc:
         doc["scenario"] = _inline_scenario(doc["scenario"], path, "scenario", origins)
     if isinstance(doc.get("scenarios"), dict):
         for name, scen in doc["scenarios"].items():
             doc["scenarios"][name] = _inline_scenario(scen, path, f"scenarios.{name}", origins)
+    doc = _deep_merge(base, doc)
+    doc.setdefault("name", path.stem)
+    if profile is not None:
+        profiles = doc.get("profiles") or {}
+        if profile not in profiles:
+            raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
+        sets = list(profiles[profile]) + list(sets)
     for s in sets:
         apply_set(doc, s)
         origins["--set " + s.split("=", 1)[0].strip()] = Path("--set")
@@ -633,9 +657,15 @@ def load_scenario(path: str | Path):
         raise validation_to_config_error(exc, {"": path}) from None
 
 
-def is_scenario_file(path: Path) -> bool:
-    """A scenario document has no ``variants`` key."""
+def is_scenario_file(path: Path, _depth: int = 0) -> bool:
+    """A scenario document has no ``variants`` key, nor does the file its ``from:`` starts from."""
     try:
-        return "variants" not in _read_yaml(path)
+        doc = _read_yaml(path)
     except ConfigError:
         return False
+    if "variants" in doc:
+        return False
+    base = doc.get("from")
+    if isinstance(base, str) and _depth < 20 and (path.parent / base).exists():
+        return is_scenario_file(path.parent / base, _depth + 1)
+    return True

@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.environment.waves import component_amplitudes, dnv_gamma
-from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
+from marinebench.models.supply import SupplyParams, SupplyVessel, SupplyVesselParams, bis_scale
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.sensors.notch import Biquad, tustin_notch
@@ -116,7 +116,11 @@ class DpScenario(ScenarioBase):
     """A DP station-keeping world (Torben et al.)."""
 
     kind: Literal["dp_supply"] = "dp_supply"
-    vessel: SupplyVesselParams = Field(default_factory=SupplyVesselParams)
+    vessel: SupplyParams = Field(default_factory=SupplyVesselParams, description="the plant (simulated vessel)")
+    design_vessel: SupplyParams | None = Field(
+        None, description="the vessel model (M, D, L) the observers are designed and run on; default: the plant's. "
+        "A different one (e.g. plant supply_shipx_lf, design supply_dp_linear) simulates model mismatch",
+    )
     initial: DpInitial = Field(default_factory=DpInitial)
     bias_rate: Vec3 = Field((0.0, 0.0, 0.0), description="constant drift of the bias load [N/s, N/s, N m/s]")
     events: list[Event] = Field(default_factory=list)
@@ -128,6 +132,11 @@ class DpScenario(ScenarioBase):
     def _sensor_grid(self):
         self.require_multiple_of_dt(self.sensors.ts, "sensors.ts")
         return self
+
+    @property
+    def model(self) -> SupplyVesselParams:
+        """The observers' design model: ``design_vessel``, or the plant's own."""
+        return self.design_vessel if self.design_vessel is not None else self.vessel
 
     # per-run world parameters a variant may override (``variants[].world``)
     PER_RUN: ClassVar[tuple[str, ...]] = ("gnss_sigma", "heading_sigma_deg")

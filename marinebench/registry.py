@@ -21,14 +21,14 @@ def kinds() -> dict[str, dict[str, str]]:
     from marinebench.environment.signals import Signal
     from marinebench.models.cybership2 import CyberShip2Params
     from marinebench.models.rov import LeonardLikeParams
-    from marinebench.models.supply import SupplyVesselParams
+    from marinebench.models.supply import SupplyParams
     from marinebench.rov_scenario import RovScenario
     from marinebench.scenario import Scenario
     from marinebench.sensors.noise import Noise
 
     return {
         "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario), **_kinds_of(RovScenario)},
-        "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyVesselParams), **_kinds_of(LeonardLikeParams)},
+        "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyParams), **_kinds_of(LeonardLikeParams)},
         "observers": _kinds_of(ObserverTuning),
         "controllers": {"rise": "RISE (Fischer et al. 2014), rov_tracking scenarios",
                         "srise": "S+RISE (Tijjani eqs. 14-17); feedback: cdo makes it CDO-S+RISE"},

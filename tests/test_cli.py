@@ -119,3 +119,26 @@ def test_list_shows_registered_kinds():
     for kind in ("cybership2", "bejarano", "liu_eso", "random_sinusoid", "bandlimited_uniform", "std",
                  "dp_supply", "supply_dp_linear", "npo", "resetting_fto", "impulse", "j_tot"):
         assert kind in res.output
+
+
+def test_experiment_from_another_experiment(tiny_config, tmp_path):
+    """`from:` starts from another experiment: its (relative) scenario, variants and metrics; mappings merge
+    key by key, lists are replaced; the derived file names itself; a bad override names the derived file."""
+    from marinebench.config import load_experiment
+
+    (tmp_path / "sub").mkdir()
+    derived = tmp_path / "sub" / "derived.yaml"
+    derived.write_text(yaml.safe_dump({"from": f"../{tiny_config.name}", "scenario": {"horizon": 2.0}, "seeds": 3}))
+    base, _ = load_experiment(tiny_config)
+    exp, origins = load_experiment(derived)
+    assert exp.name == "derived" and exp.seeds == 3 and exp.scenario.horizon == 2.0
+    assert exp.scenario.dt == base.scenario.dt and [v.name for v in exp.variants] == [v.name for v in base.variants]
+    assert origins["from"] == tiny_config.resolve()
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 0, res.output  # recognised as an experiment, not a scenario
+    derived.write_text(yaml.safe_dump({"from": f"../{tiny_config.name}", "scenario": {"dt": -1}}))
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 2 and res.output.startswith(f"error: {derived}: scenario.dt"), res.output
+    derived.write_text(yaml.safe_dump({"from": "derived.yaml", "variants": []}))
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 2 and "circular experiment reference" in res.output, res.output

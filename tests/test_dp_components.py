@@ -132,3 +132,14 @@ def test_rk4_maps_match_taylor(dt):
     I2 = np.eye(2)
     np.testing.assert_allclose(P[0], I2 + X + X @ X / 2 + X @ X @ X / 6 + X @ X @ X @ X / 24, rtol=1e-14)
     np.testing.assert_allclose(H[0], dt * (I2 + X / 2 + X @ X / 6 + X @ X @ X / 24), rtol=1e-14)
+
+
+def test_shipx_low_frequency_vessel():
+    """Model B of models.md 2b: M symmetric positive definite; M/D time constants ~54 s, 103 s, 22 s."""
+    from marinebench.models.supply import ShipxSupplyLfParams
+
+    v = SupplyVessel(ShipxSupplyLfParams())
+    np.testing.assert_array_equal(v.M, v.M.T)
+    assert np.all(np.linalg.eigvalsh(v.M) > 0)
+    np.testing.assert_allclose(np.diag(v.M) / np.diag(v.D), [54, 103, 22], rtol=0.02)
+    np.testing.assert_allclose(bis_scale(ShipxSupplyLfParams())[[0, 3]], [82.8, 6362208.5 * 9.81])

@@ -29,3 +29,18 @@ def test_batched_equals_reference_on_sweep_points():
             assert np.isclose(batched[v.name, metric], ref[metric], rtol=tol, atol=0), (v.name, metric)
         assert batched[v.name, "n_jumps"] == ref["n_jumps"], v.name
     assert sum(reference_run(exp, i)["n_jumps"] for i in range(len(picks))) > 0  # resets were exercised
+
+
+def test_batched_equals_reference_with_model_mismatch():
+    """Plant ShipX LF, observers on model A: the reference uses the design model and its bis coordinates too."""
+    sets = ["scenario.horizon=80", "scenario.vessel.kind=supply_shipx_lf", "scenario.design_vessel={kind: supply_dp_linear}"]
+    base, _ = load_experiment(CONFIG, sets)
+    exp = sweep_experiment(base, ["k"], None, 2, None, CONFIG)  # k = 0 and k = 1, both GNSS models
+    batched = run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
+    jumps = 0
+    for i, v in enumerate(exp.variants):
+        ref = reference_run(exp, i)
+        assert np.isclose(batched[v.name, "J_tot"], ref["J_tot"], rtol=1e-9, atol=0), v.name
+        assert batched[v.name, "n_jumps"] == ref["n_jumps"], v.name
+        jumps += ref["n_jumps"]
+    assert jumps > 0

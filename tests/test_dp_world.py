@@ -198,3 +198,23 @@ def test_discrete_fto_is_exact_through_the_engine(scheme):
         assert m["resetting", "J_after"] < 1e-9 * m["resetting", "J_before"]
     else:
         assert m["resetting", "J_after"] > 1e-4 * m["resetting", "J_before"]
+
+
+def test_design_vessel_separates_the_observer_model_from_the_plant():
+    """Plant: ShipX LF (model B); observers: designed and run on model A. The default is the plant's own."""
+    from marinebench.experiments.runner import make_observer, plant_of
+    from marinebench.models.supply import SupplyVessel, SupplyVesselParams
+
+    exp, _ = load_experiment(CONFIG, ["scenario.horizon=60", "seeds=1", "figures=[]",
+                                      "scenario.vessel.kind=supply_shipx_lf",
+                                      "scenario.design_vessel={kind: supply_dp_linear}"])
+    world = DpWorld(exp.scenario, 0, np.zeros(1, dtype=int))
+    observer = make_observer("npo", [exp.variants[0].observer], exp.scenario, plant_of(exp.scenario))
+    model_a = SupplyVessel(SupplyVesselParams())
+    np.testing.assert_array_equal(observer.M, model_a.M)
+    assert world.plant.params.kind == "supply_shipx_lf" and world.plant.M[1, 1] == pytest.approx(8.546e6)
+    np.testing.assert_allclose(world.scale[0], 82.8)  # the KPI's bis units are the simulated vessel's
+    # an explicit design_vessel equal to the plant changes nothing
+    same = short("scenario.design_vessel={kind: supply_dp_linear}")
+    default = short()
+    assert same["resetting", "J_tot"] == pytest.approx(default["resetting", "J_tot"], rel=1e-12)

@@ -13,7 +13,7 @@ import numpy as np
 from marinebench.config import Experiment
 from marinebench.design.kalman import dp_system
 from marinebench.experiments.runner import make_world
-from marinebench.models.supply import bis_scale
+from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.base import wrap_angle
 from marinebench.observers.dp import gain_pair, one_step_maps
 
@@ -26,14 +26,14 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     t_obs = v.observer
     sc = exp.scenario
     world = make_world(exp.model_copy(update={"variants": [v]}), np.array([0]), np.array([seed]))
-    M, D = world.plant.M, world.plant.D
-    Minv = np.linalg.inv(M)
-    g = gain_pair(t_obs.design_key(sc.vessel.L), M, D)
+    model = SupplyVessel(sc.model)  # the observers' design model (the plant's unless design_vessel is set)
+    M, D, Minv = model.M, model.D, model.Minv
+    g = gain_pair(t_obs.design_key(sc.model.L), M, D)
     k = getattr(t_obs, "k", 0.0)
     n_window = max(1, round(getattr(t_obs, "delta", 2.5) / sc.dt))
     eps = np.multiply(getattr(t_obs, "eps", (np.inf,) * 3), getattr(t_obs, "eps_scale", 1.0))
     c_max, check = getattr(t_obs, "c_max", 1e10), getattr(t_obs, "check_cond", True)
-    S = bis_scale(sc.vessel)
+    S, S_obs = bis_scale(sc.vessel), bis_scale(sc.model)  # the KPI's units (true vessel), the jump's coordinates
     z = [np.zeros(9), np.zeros(9)]
     phi = [np.eye(9), np.eye(9)]
     windows = [(m.label, *m.window(sc.horizon)) for m in exp.metrics if m.kind == "j_tot"]
@@ -76,12 +76,12 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
             innov = y - z[0][0:3]
             innov[2] = wrap_angle(innov[2])
             # Psi in the bis-scaled coordinates z_s = S^-1 z (the same equation, better conditioned)
-            p1, p2 = (p * S[None, :] / S[:, None] for p in phi)
+            p1, p2 = (p * S_obs[None, :] / S_obs[:, None] for p in phi)
             Ys = np.linalg.solve(p1.T, p2.T).T
             Xs = np.eye(9) - Ys
             cond = np.linalg.cond(Xs)
             if np.any(np.abs(innov) >= eps) and (not check or cond <= c_max) and np.isfinite(cond):
-                z_star = S * np.linalg.solve(Xs, z[1] / S - Ys @ (z[0] / S))
+                z_star = S_obs * np.linalg.solve(Xs, z[1] / S_obs - Ys @ (z[0] / S_obs))
                 z[0] = k * z_star + (1 - k) * z[0]
                 jumps += int(k > 0)
             z[1] = z[0].copy()

@@ -38,7 +38,9 @@ def observer_kinds_for(scenario) -> tuple[str, ...]:
 
 
 def plant_of(scenario):
-    return {"open_loop_asv": CyberShip2, "dp_supply": SupplyVessel, "rov_tracking": LeonardLike}[scenario.kind](scenario.vessel)
+    """The vessel model the observers are built on: the plant's, or a DP scenario's ``design_vessel``."""
+    params = scenario.model if scenario.kind == "dp_supply" else scenario.vessel
+    return {"open_loop_asv": CyberShip2, "dp_supply": SupplyVessel, "rov_tracking": LeonardLike}[scenario.kind](params)
 
 
 def make_observer(kind: str, tunings: list, scenario, plant):
@@ -48,7 +50,7 @@ def make_observer(kind: str, tunings: list, scenario, plant):
     if kind == "liu_eso":
         return LiuEsoObserver(tunings, plant.Minv)
     if kind in ("npo", "resetting_fto"):
-        return DpObserver(tunings, plant, scenario.dt, bis_scale(scenario.vessel))
+        return DpObserver(tunings, plant, scenario.dt, bis_scale(plant.params))
     raise KeyError(kind)
 
 
@@ -165,7 +167,7 @@ def _run_single(
     run_seed = np.tile(np.arange(S), V)
     sc = exp.scenario
     world = make_world(exp, run_variant, run_seed)
-    groups = build_groups(exp, run_variant, world.plant)
+    groups = build_groups(exp, run_variant, plant_of(sc))
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
     n_steps = round(sc.horizon / sc.dt)
     recorders = []
@@ -236,7 +238,7 @@ def _undisturbed_truth(exp: Experiment, run_variant, run_seed, signals: list[str
     calm = exp.model_copy(update={"scenario": exp.scenario.model_copy(update={"pushes": []})})
     world = make_world(calm, run_variant, run_seed)
     log = TruthLog(signals, n_steps)
-    simulate(world, build_groups(calm, run_variant, world.plant), exp.scenario.dt, n_steps, [log])
+    simulate(world, build_groups(calm, run_variant, plant_of(calm.scenario)), exp.scenario.dt, n_steps, [log])
     return log.values
 
 

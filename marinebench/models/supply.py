@@ -1,8 +1,14 @@
-"""MSS supply vessel for dynamic positioning, model (A) of ``shared/reference/models.md`` section 2b.
+"""MSS supply vessels for dynamic positioning, models (A) and (B) of ``shared/reference/models.md`` section 2b.
 
-Fossen, Sagatun & Sorensen (1996), MSS ``supply.m`` / PythonVehicleSimulator ``supply.py``: a 3-DOF
-linear low-frequency model given in the bis system. Model (A) is used because its M and D are fully
-published; model (B) (ShipX 6-DOF) needs the ``supply.mat`` data, which is not available here.
+(A) ``supply_dp_linear``: Fossen, Sagatun & Sorensen (1996), MSS ``supply.m`` / PythonVehicleSimulator
+``supply.py``, a 3-DOF linear low-frequency model given in the bis system; the default plant and the
+observers' design model, because its M and D are fully published.
+(B) ``supply_shipx_lf``: the low-frequency 3-DOF part of the MSS ShipX 6-DOF "Supply vessel" (the
+simulator Torben et al. most likely used): M = (M_RB + M_A)[1,2,6] and the viscous damping at low
+frequency, as read from ``supply.mat`` in models.md; the frequency-dependent added mass and damping
+(fluid memory) and the 6-DOF coupling are not available here. Used as a *plant* with observers designed
+on (A), it stands in for the paper's mismatch between its "high-fidelity" simulator and the "highly
+simplified control design model" (41); see ``DpScenario.design_vessel``.
 
 Low-frequency dynamics with a bias load b (NED, force units), Torben et al. eq. (41):
 
@@ -15,7 +21,7 @@ Low-frequency dynamics with a bias load b (NED, force units), Torben et al. eq. 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -36,15 +42,38 @@ class SupplyVesselParams(BaseModel):
     D_bis: tuple[tuple[float, float, float], ...] = Field(D_BIS, description="D'' (bis)")
 
 
-def dimensional_matrices(p: SupplyVesselParams) -> tuple[np.ndarray, np.ndarray]:
+Mat3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
+# models.md 2b (B): 3-DOF M from supply.mat, sway-yaw entries (-4.468e7, -4.503e7) symmetrised; viscous Bv
+M_SHIPX = ((7.018e6, 0.0, 0.0), (0.0, 8.546e6, -4.4855e7), (0.0, -4.4855e7, 4.050e9))
+D_SHIPX = ((1.30e5, 0.0, 0.0), (0.0, 8.27e4, 0.0), (0.0, 0.0, 1.83e8))
+
+
+class ShipxSupplyLfParams(BaseModel):
+    """Low-frequency 3-DOF part of the MSS ShipX supply vessel (model B; M, D in SI)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["supply_shipx_lf"] = "supply_shipx_lf"
+    L: float = Field(82.8, gt=0, description="length between perpendiculars [m]")
+    m: float = Field(6362208.5, gt=0, description="mass rho*volume [kg] (bis mass unit)")
+    g: float = Field(9.81, gt=0, description="gravity [m/s^2]")
+    M: Mat3 = Field(M_SHIPX, description="3-DOF mass matrix incl. infinite-frequency added mass [kg, kg m, kg m^2]")
+    D: Mat3 = Field(D_SHIPX, description="linear (viscous, low-frequency) damping [N s/m, N s, N m s]")
+
+
+SupplyParams = Annotated[SupplyVesselParams | ShipxSupplyLfParams, Field(discriminator="kind")]
+
+
+def dimensional_matrices(p: SupplyVesselParams | ShipxSupplyLfParams) -> tuple[np.ndarray, np.ndarray]:
     """(M, D) in SI units."""
+    if p.kind == "supply_shipx_lf":
+        return np.array(p.M, dtype=float), np.array(p.D, dtype=float)
     T = np.diag([1.0, 1.0, p.L])
     M = p.m * T @ np.array(p.M_bis) @ T
     D = p.m * np.sqrt(p.g / p.L) * T @ np.array(p.D_bis) @ T
     return M, D
 
 
-def bis_scale(p: SupplyVesselParams) -> np.ndarray:
+def bis_scale(p: SupplyVesselParams | ShipxSupplyLfParams) -> np.ndarray:
     """Denominators that make z = [eta, b, nu] dimensionless (Norrbin's bis system, models.md 2d)."""
     L, m, g = p.L, p.m, p.g
     return np.array([L, L, 1.0, m * g, m * g, m * g * L, np.sqrt(g * L), np.sqrt(g * L), np.sqrt(g / L)])
@@ -54,7 +83,7 @@ def bis_scale(p: SupplyVesselParams) -> np.ndarray:
 class SupplyVessel:
     """Batched low-frequency plant; state ``x = [eta(3), nu(3), b(3)]`` with shape ``(B, 9)``."""
 
-    params: SupplyVesselParams
+    params: SupplyVesselParams | ShipxSupplyLfParams
     M: np.ndarray = field(init=False)
     D: np.ndarray = field(init=False)
     Minv: np.ndarray = field(init=False)
