@@ -118,6 +118,7 @@ def sweep(
         sweep_name,
         sweep_table,
     )
+    from marinebench.results.outputs import model_assumptions
     from marinebench.results.writer import atomic_directory, manifest
 
     if chunk_size < 1:
@@ -158,7 +159,8 @@ def sweep(
             runs=len(exp.variants) * exp.seeds,
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, wall_time_s=round(wall, 3),
-            total_time_s=round(_time.perf_counter() - t0, 3), assumptions=list(base.assumptions)))
+            total_time_s=round(_time.perf_counter() - t0, 3),
+            assumptions=model_assumptions({"": base.scenario}) + list(base.assumptions)))
     discard_partial(target)
     if not quiet:
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {wall:.1f} s of simulation "

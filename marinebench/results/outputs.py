@@ -35,6 +35,12 @@ def _steps(worlds: dict) -> dict:
     return next(iter(info.values())) if len(info) == 1 else {"scenarios": info}
 
 
+def model_assumptions(worlds: dict) -> list[str]:
+    """A DP world whose observers run on another vessel model than the plant says so."""
+    return [f"scenario {w.name}: plant {w.vessel.kind}, observers designed and run on {w.model.kind} (model mismatch)"
+            for w in worlds.values() if getattr(w, "design_vessel", None) is not None and w.model != w.vessel]
+
+
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Path:
     exp = result.experiment
     with atomic_directory(out_dir) as tmp:
@@ -62,7 +68,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
                 **_steps(worlds),
                 max_observer_rate=result.max_rate,
                 wall_time_s=round(result.wall_time, 3),
-                assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + list(exp.assumptions),
+                assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + model_assumptions(worlds)
+                + list(exp.assumptions),
                 designs=result.designs,
             )
         )
