@@ -472,19 +472,24 @@ def apply_set(doc: dict, assignment: str) -> None:
             node = node[idx]
 
 
+def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
+    """The file a ``from:`` in ``path`` names (relative to it), checked: a path, not circular, existing."""
+    if not isinstance(ref, str):
+        raise ConfigError(path, "from", f"expected the path of a {what} file")
+    bpath = (path.parent / ref).resolve()
+    if bpath in seen or bpath == path.resolve():
+        raise ConfigError(path, "from", f"circular {what} reference to {ref}")
+    if not bpath.exists():
+        raise ConfigError(path, "from", f"{what} file not found: {ref}")
+    return bpath
+
+
 def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     """A scenario file; ``from: other.yaml`` in it starts from that scenario (relative path) and overrides keys."""
     doc = _read_yaml(path)
-    base = doc.pop("from", None)
-    if base is None:
+    if "from" not in doc:
         return doc
-    if not isinstance(base, str):
-        raise ConfigError(path, "from", "expected a scenario file path")
-    bpath = (path.parent / base).resolve()
-    if bpath in _seen or bpath == path.resolve():
-        raise ConfigError(path, "from", f"circular scenario reference to {base}")
-    if not bpath.exists():
-        raise ConfigError(path, "from", f"scenario file not found: {base}")
+    bpath = _from_path(doc.pop("from"), path, _seen, "scenario")
     return _deep_merge(read_scenario(bpath, (*_seen, path.resolve())), doc)
 
 
@@ -507,14 +512,7 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
 
 def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dict, dict[str, Path]]:
     """The resolved document of the experiment named by ``from:`` (relative path), without its name."""
-    ref = doc.pop("from")
-    if not isinstance(ref, str):
-        raise ConfigError(path, "from", "expected an experiment file path")
-    bpath = (path.parent / ref).resolve()
-    if bpath in seen or bpath == path.resolve():
-        raise ConfigError(path, "from", f"circular experiment reference to {ref}")
-    if not bpath.exists():
-        raise ConfigError(path, "from", f"experiment file not found: {ref}")
+    bpath = _from_path(doc.pop("from"), path, seen, "experiment")
     base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
     base.pop("name", None)  # the derived file is its own experiment
     return base, {**{k: v for k, v in origins.items() if k}, "from": bpath}
