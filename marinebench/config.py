@@ -475,7 +475,7 @@ def apply_set(doc: dict, assignment: str) -> None:
 def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
     """The file a ``from:`` in ``path`` names (relative to it), checked: a path, not circular, existing."""
     if not isinstance(ref, str):
-        raise ConfigError(path, "from", f"expected the path of a {what} file")
+        raise ConfigError(path, "from", f"expected a path to the {what} file")
     bpath = (path.parent / ref).resolve()
     if bpath in seen or bpath == path.resolve():
         raise ConfigError(path, "from", f"circular {what} reference to {ref}")
