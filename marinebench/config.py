@@ -551,7 +551,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
     tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "rov_tracking", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
+            "open_loop_asv", "dp_supply", "rov_tracking", "supply_dp_linear", "supply_shipx_lf", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
     return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 

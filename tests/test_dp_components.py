@@ -143,3 +143,16 @@ def test_shipx_low_frequency_vessel():
     assert np.all(np.linalg.eigvalsh(v.M) > 0)
     np.testing.assert_allclose(np.diag(v.M) / np.diag(v.D), [54, 103, 22], rtol=0.02)
     np.testing.assert_allclose(bis_scale(ShipxSupplyLfParams())[[0, 3]], [82.8, 6362208.5 * 9.81])
+
+
+def test_shipx_mass_matrix_must_be_positive_definite(tmp_path):
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    from .conftest import ROOT
+
+    res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "torben_fig1_mismatch.yaml"), "--out", str(tmp_path / "o"),
+                                   "--set", "scenario.vessel.M=[[1, 0, 0], [0, -1, 0], [0, 0, 1]]"])
+    assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario.vessel.M: M must be positive definite"
+    assert not (tmp_path / "o").exists()

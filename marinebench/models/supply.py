@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 M_BIS = ((1.1274, 0.0, 0.0), (0.0, 1.8902, -0.0744), (0.0, -0.0744, 0.1278))
 D_BIS = ((0.0358, 0.0, 0.0), (0.0, 0.1183, -0.0124), (0.0, -0.0041, 0.0308))
@@ -58,6 +58,14 @@ class ShipxSupplyLfParams(BaseModel):
     g: float = Field(9.81, gt=0, description="gravity [m/s^2]")
     M: Mat3 = Field(M_SHIPX, description="3-DOF mass matrix incl. infinite-frequency added mass [kg, kg m, kg m^2]")
     D: Mat3 = Field(D_SHIPX, description="linear (viscous, low-frequency) damping [N s/m, N s, N m s]")
+
+    @field_validator("M")
+    @classmethod
+    def _positive_definite(cls, M: Mat3) -> Mat3:
+        sym = np.array(M, dtype=float)
+        if not np.all(np.linalg.eigvalsh((sym + sym.T) / 2) > 0):
+            raise ValueError("M must be positive definite")
+        return M
 
 
 SupplyParams = Annotated[SupplyVesselParams | ShipxSupplyLfParams, Field(discriminator="kind")]
