@@ -108,8 +108,6 @@ def sweep(
     Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches."""
     import time as _time
 
-    import yaml
-
     from marinebench.experiments.sweep import (
         discard_partial,
         run_chunked,
@@ -118,7 +116,7 @@ def sweep(
         sweep_name,
         sweep_table,
     )
-    from marinebench.results.outputs import model_assumptions
+    from marinebench.results.outputs import model_assumptions, resolved_yaml
     from marinebench.results.writer import atomic_directory, manifest
 
     if chunk_size < 1:
@@ -150,7 +148,7 @@ def sweep(
     metric = base.sweep.metric
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "config.resolved.yaml").write_text(yaml.safe_dump(base.model_dump(mode="json"), sort_keys=False, allow_unicode=True))
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
         (tmp / "table.md").write_text(sweep_table(metrics, metric, base.sweep))
         (tmp / "figures").mkdir()
         sweep_figure(metrics, metric, base, tmp / "figures" / "sweep.png")

@@ -134,7 +134,7 @@ class DpScenario(ScenarioBase):
         return self
 
     @property
-    def model(self) -> SupplyVesselParams:
+    def model(self) -> SupplyParams:
         """The observers' design model: ``design_vessel``, or the plant's own."""
         return self.design_vessel if self.design_vessel is not None else self.vessel
 

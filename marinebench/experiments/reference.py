@@ -12,8 +12,8 @@ import numpy as np
 
 from marinebench.config import Experiment
 from marinebench.design.kalman import dp_system
-from marinebench.experiments.runner import make_world
-from marinebench.models.supply import SupplyVessel, bis_scale
+from marinebench.experiments.runner import make_world, plant_of
+from marinebench.models.supply import bis_scale
 from marinebench.observers.base import wrap_angle
 from marinebench.observers.dp import gain_pair, one_step_maps
 
@@ -26,7 +26,7 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     t_obs = v.observer
     sc = exp.scenario
     world = make_world(exp.model_copy(update={"variants": [v]}), np.array([0]), np.array([seed]))
-    model = SupplyVessel(sc.model)  # the observers' design model (the plant's unless design_vessel is set)
+    model = plant_of(sc)  # the observers' design model (the plant's unless design_vessel is set)
     M, D, Minv = model.M, model.D, model.Minv
     g = gain_pair(t_obs.design_key(sc.model.L), M, D)
     k = getattr(t_obs, "k", 0.0)

@@ -35,18 +35,21 @@ def _steps(worlds: dict) -> dict:
     return next(iter(info.values())) if len(info) == 1 else {"scenarios": info}
 
 
+def resolved_yaml(exp) -> str:
+    """The experiment with every default filled in, as written to ``config.resolved.yaml``."""
+    return yaml.safe_dump(exp.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
+
+
 def model_assumptions(worlds: dict) -> list[str]:
     """A DP world whose observers run on another vessel model than the plant says so."""
     return [f"scenario {w.name}: plant {w.vessel.kind}, observers designed and run on {w.model.kind} (model mismatch)"
-            for w in worlds.values() if getattr(w, "design_vessel", None) is not None and w.model != w.vessel]
+            for w in worlds.values() if getattr(w, "design_vessel", None) not in (None, w.vessel)]
 
 
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Path:
     exp = result.experiment
     with atomic_directory(out_dir) as tmp:
-        (tmp / "config.resolved.yaml").write_text(
-            yaml.safe_dump(exp.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
-        )
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(exp))
         result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "table.md").write_text(markdown_table(exp, result.summary))
         figdir = tmp / "figures"
