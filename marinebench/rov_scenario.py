@@ -112,7 +112,7 @@ class RovScenario(ScenarioBase):
 
     def cdo_design(self) -> dict:
         """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius (raises DesignError)."""
-        from marinebench.design.cdo import check, design_lmi
+        from marinebench.design.cdo import check, design_lmi, sample_noise_gain
 
         c = self.cdo
         k = c.gain()
@@ -121,9 +121,29 @@ class RovScenario(ScenarioBase):
             d = design_lmi(c.lmi_decay)
             out.update(lmi_decay=c.lmi_decay, lmi40_max_eig=d.lmi_max_eig,
                        poles=sorted((c.theta * d.poles_normalised.real).round(3).tolist()))
-        for dof, h in (("depth", self.sensors.depth_period), ("yaw", self.sensors.attitude_period)):
+        for dof, h in self.sample_periods():
             out[f"sampled_radius_{dof}"] = round(check(k, c.theta, c.k_w, h, dof), 4)
+            out[f"noise_gain_{dof}"] = round(sample_noise_gain(self.cdo_injection(), h, c.k_w), 4)
         return out
+
+    def eo_design(self) -> dict:
+        """The EO's injection gain, poles and, per DOF, its sample-noise gain (held samples, no predictor)."""
+        from marinebench.design.cdo import sample_noise_gain
+
+        gain = self.eo.gain()
+        out = {"eps": self.eo.eps, "a": list(self.eo.a), "gain": gain.round(4).tolist(),
+               "poles": sorted(np.roots([1.0, *gain]).real.round(3).tolist())}
+        for dof, h in self.sample_periods():
+            out[f"noise_gain_{dof}"] = round(sample_noise_gain(gain, h, predictor=False), 4)
+        return out
+
+    def cdo_injection(self) -> np.ndarray:
+        """Delta_theta K* = [theta K*_1, theta^2 K*_2, theta^3 K*_3]."""
+        c = self.cdo
+        return np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.gain())
+
+    def sample_periods(self) -> tuple[tuple[str, float], ...]:
+        return (("depth", self.sensors.depth_period), ("yaw", self.sensors.attitude_period))
 
     @model_validator(mode="after")
     def _sample_grid(self):
@@ -162,7 +182,7 @@ class RovWorld:
             self.load_every = round(rl.period / sc.dt)
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
         self.feedforward = [spec.feedforward_mask() for spec, _ in controllers]
-        self.every = (round(sc.sensors.depth_period / sc.dt), round(sc.sensors.attitude_period / sc.dt))
+        self.every = tuple(round(h / sc.dt) for _, h in sc.sample_periods())
         self.control_every = round(sc.control_period / sc.dt)
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
         self.x0 = np.zeros((B, 4 + 6 + 2 + 6))
@@ -173,8 +193,7 @@ class RovWorld:
         cdo[:, :, 0] = eo[:, :, 0] = self.x0[:, 0:2] + offset  # the observers start at the pose plus an offset
         w[:] = self.x0[:, 0:2]
         self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
-        c = sc.cdo
-        self.cdo_gain = np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.gain())  # Delta_theta K*
+        self.cdo_gain = sc.cdo_injection()  # Delta_theta K*
         self.eo_gain = sc.eo.gain()
         self.feedback = [spec.feedback for spec, _ in controllers]
         self.observe = np.zeros(B, dtype=int) if observe is None else np.asarray(observe)

@@ -103,7 +103,9 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
     """Designed gains and poles per variant, for the manifest."""
     from marinebench.observers import bejarano
 
-    out = {"world_cdo": exp.scenario.cdo_design()} if exp.scenario.kind == "rov_tracking" else {}
+    out = {}
+    if exp.scenario.kind == "rov_tracking":
+        out = {"world_cdo": exp.scenario.cdo_design(), "world_eo": exp.scenario.eo_design()}
     for v in exp.variants:
         o = v.observer
         if v.controller is not None:
