@@ -121,9 +121,10 @@ class RovScenario(ScenarioBase):
             d = design_lmi(c.lmi_decay)
             out.update(lmi_decay=c.lmi_decay, lmi40_max_eig=d.lmi_max_eig,
                        poles=sorted((c.theta * d.poles_normalised.real).round(3).tolist()))
+        injection = self.cdo_injection()
         for dof, h in self.sample_periods():
             out[f"sampled_radius_{dof}"] = round(check(k, c.theta, c.k_w, h, dof), 4)
-            out[f"noise_gain_{dof}"] = round(sample_noise_gain(self.cdo_injection(), h, c.k_w), 4)
+            out[f"noise_gain_{dof}"] = round(sample_noise_gain(injection, h, c.k_w), 4)
         return out
 
     def eo_design(self) -> dict:
@@ -143,6 +144,7 @@ class RovScenario(ScenarioBase):
         return np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.gain())
 
     def sample_periods(self) -> tuple[tuple[str, float], ...]:
+        """(DOF, sensor period) in the state's DOF order: depth (pressure sensor), yaw (IMU)."""
         return (("depth", self.sensors.depth_period), ("yaw", self.sensors.attitude_period))
 
     @model_validator(mode="after")

@@ -100,7 +100,7 @@ def test_noisy_errors_are_the_observers_noise_transfer_sampled_by_the_multisine(
     noise = sc.sensors.position_noise.sample(stream_rngs(11, list(seeds), "position_noise"), 2)
     t = np.arange(4000, 8001) * sc.dt
     for run in runs:
-        omega, phase = noise.omega[seeds[run % 2], 0], noise.phase[seeds[run % 2], 0]  # east/x channel
+        omega, phase = noise.omega[seeds[run % 2], 0], noise.phase[seeds[run % 2], 0]  # channel 0: the x (north) noise, which is e_u's at psi = 0
         for name, H in zip(("u", "sigma_u"), chain_response(gains[run // 2], omega)):
             e = (noise.amplitude * np.abs(H) * np.sin(np.outer(t, omega) + phase + np.angle(H))).sum(axis=1)
             assert std[name][run] == pytest.approx(e.std(), rel=1e-5), (run, name)
