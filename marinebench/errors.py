@@ -22,3 +22,7 @@ class DesignError(MarinebenchError):
 
 class StiffnessError(MarinebenchError):
     """The integration step is too large for the designed observer poles."""
+
+
+class ClusterError(MarinebenchError):
+    """Dask is not installed, or its scheduler cannot be reached."""

@@ -183,17 +183,29 @@ def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path
     plt.close(fig)
 
 
-def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None) -> tuple[pd.DataFrame, float, int]:
+def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[str, float]:
+    """Simulate one chunk of a sweep (in this process or on a Dask worker): its tidy metrics as CSV text
+    (full precision) and its simulation wall time."""
+    from marinebench.experiments.runner import run
+
+    result = run(exp.model_copy(update={"variants": variants}), progress=progress, traces=False)
+    return result.metrics.to_csv(index=False, float_format="%.17g"), result.wall_time
+
+
+def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None,
+                client=None) -> tuple[pd.DataFrame, float, int]:
     """Run the sweep's runs in chunks, saving each chunk's metrics in ``.<target>.partial/``.
 
     An interrupted sweep resumes: chunks already on disk for the same experiment (same resolved config,
     compared by hash) are loaded, not rerun. Runs are independent of the batch they are in (per-run
-    seeding), so chunking does not change any number. Returns (metrics, simulation wall time, chunks run).
+    seeding), so chunking does not change any number. With a Dask ``client`` (``distributed.Client``) the
+    unfinished chunks are submitted to its workers at once and each is saved here as it arrives, so the
+    numbers are the same as in one process and an interrupted distributed sweep resumes the same way.
+    Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
     """
     import hashlib
     import shutil
 
-    from marinebench.experiments.runner import run
     from marinebench.results.writer import atomic_write_text
 
     key = hashlib.sha256(exp.model_dump_json().encode()).hexdigest()
@@ -207,23 +219,31 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     atomic_write_text(partial / "key", key)
     per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
     chunks = [exp.variants[i : i + per_chunk] for i in range(0, len(exp.variants), per_chunk)]
+    paths = [partial / f"chunk-{c:04d}.csv" for c in range(len(chunks))]
     n_steps = round(exp.scenario.horizon / exp.scenario.dt)
     if on_start is not None:
         on_start(n_steps * len(chunks))
-    frames, wall, ran = [], 0.0, 0
-    for c, variants in enumerate(chunks):
-        path = partial / f"chunk-{c:04d}.csv"
-        if path.exists():
-            frames.append(pd.read_csv(path))
+    pending = [c for c, path in enumerate(paths) if not path.exists()]
+    if progress is not None:
+        progress(n_steps * (len(chunks) - len(pending)))
+    wall = 0.0
+    if client is None:
+        for c in pending:
+            csv, w = run_chunk(exp, chunks[c], progress)
+            atomic_write_text(paths[c], csv)
+            wall += w
+    else:
+        from distributed import as_completed
+
+        futures = {client.submit(run_chunk, exp, chunks[c], key=f"marinebench-{key[:12]}-chunk-{c:04d}"): c
+                   for c in pending}
+        for future in as_completed(futures):
+            csv, w = future.result()
+            atomic_write_text(paths[futures[future]], csv)
+            wall += w
             if progress is not None:
                 progress(n_steps)
-            continue
-        result = run(exp.model_copy(update={"variants": variants}), progress=progress, traces=False)
-        atomic_write_text(path, result.metrics.to_csv(index=False, float_format="%.17g"))
-        frames.append(pd.read_csv(path))
-        wall += result.wall_time
-        ran += 1
-    return pd.concat(frames, ignore_index=True), wall, ran
+    return pd.concat([pd.read_csv(path) for path in paths], ignore_index=True), wall, len(pending)
 
 
 def discard_partial(target: Path) -> None:

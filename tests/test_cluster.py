@@ -1,0 +1,64 @@
+"""Sweeps on Dask: the same numbers as in one process, resumable, and clear errors when Dask is unusable."""
+
+import sys
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.config import load_experiment
+from marinebench.errors import ClusterError
+from marinebench.experiments.cluster import dask_client
+from marinebench.experiments.sweep import run_chunked, sweep_experiment
+
+from .conftest import ROOT
+
+CFG = ROOT / "configs" / "torben_fig3.yaml"
+KEY = ["variant", "seed", "signal", "metric"]
+
+
+def _values(frame: pd.DataFrame) -> list[float]:
+    return frame.sort_values(KEY)["value"].tolist()
+
+
+def test_dask_chunks_give_the_in_process_numbers_and_resume(tmp_path):
+    from distributed import Client
+
+    base, _ = load_experiment(CFG)
+    exp = sweep_experiment(base, ["k"], None, 3, 15.0, CFG)  # 6 runs, 3 chunks of 2
+    local, _, ran_local = run_chunked(exp, tmp_path / "local", chunk_size=2)
+    target = tmp_path / "dask"
+    partial = tmp_path / ".dask.partial"
+    with Client(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as client:
+        first, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+        assert ran == ran_local == 3 and _values(first) == _values(local)
+        (partial / "chunk-0001.csv").unlink()  # as if the sweep had been interrupted before this chunk came back
+        resumed, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+    assert ran == 1 and _values(resumed) == _values(local)
+
+
+def test_cli_sweep_on_a_local_dask_cluster(tmp_path):
+    args = ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15", "--gnss", "dgnss", "--chunk-size", "1",
+            "--quiet"]
+    plain = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "plain")])
+    dask = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "dask"), "--dask", "local", "--workers", "1"])
+    assert plain.exit_code == 0 and dask.exit_code == 0, plain.output + dask.output
+    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep" / "metrics.csv")
+    b = pd.read_csv(tmp_path / "dask" / "torben_fig3_sweep" / "metrics.csv")
+    assert _values(a) == _values(b)
+    assert "dask local cluster, 1 worker" in (tmp_path / "dask" / "torben_fig3_sweep" / "manifest.json").read_text()
+
+
+def test_unreachable_scheduler_is_a_clear_error():
+    with pytest.raises(ClusterError, match="cannot reach the scheduler"), dask_client("tcp://127.0.0.1:9", timeout=1.0):
+        pass
+
+
+def test_missing_dask_is_one_line_exit_2_and_nothing_written(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if the 'dask' extra were not installed
+    res = CliRunner().invoke(app, ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15",
+                                   "--out", str(tmp_path), "--dask", "local", "--quiet"])
+    assert res.exit_code == 2 and res.output.strip().splitlines() == [
+        "error: --dask: needs Dask's distributed scheduler: pip install -e '.[dask]'"]
+    assert not any(tmp_path.iterdir())
