@@ -1,0 +1,59 @@
+"""Speed and memory of the batched engine on the Torben sweep (pytest-benchmark; not part of ``pytest``).
+
+    pip install -e '.[bench]'
+    pytest benchmarks                                   # timings, the speed-up and the memory target
+    pytest benchmarks --benchmark-autosave              # keep this machine's timings ...
+    pytest benchmarks --benchmark-compare --benchmark-compare-fail=mean:15%   # ... and gate later commits on them
+
+The targets are those of the sweep issue, checked as ratios measured in the same process (the machines are
+shared and noisy): the 600-run batch must be at least 10x faster per run than the plain per-run reference
+loop (``experiments/reference.py``), agree with it, and stay under 500 MiB of traced
+memory. Runs are 20 s long, so a round takes seconds; the speed-up grows with the horizon (33x here, 42x at 50 s with
+``marinebench bench``, which also extrapolates to the full sweep).
+"""
+
+import time
+import tracemalloc
+
+import pytest
+
+from marinebench.config import load_experiment
+from marinebench.experiments.reference import reference_run
+from marinebench.experiments.runner import run
+from marinebench.experiments.sweep import sweep_experiment
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+CFG = ROOT / "configs" / "torben_fig3.yaml"
+HORIZON = 20.0  # simulated seconds per run
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    base, _ = load_experiment(CFG)
+    return sweep_experiment(base, ["k", "delta", "eps"], None, None, HORIZON, CFG)  # 600 runs
+
+
+def test_batched_sweep_is_at_least_10x_the_per_run_loop(benchmark, sweep):
+    result = benchmark.pedantic(lambda: run(sweep, traces=False), rounds=3, iterations=1, warmup_rounds=1)
+    runs = len(sweep.variants)
+    picks = [0, runs // 2, runs - 1]
+    t0 = time.perf_counter()
+    refs = [reference_run(sweep, i) for i in picks]
+    per_run_reference = (time.perf_counter() - t0) / len(picks)
+    per_run_batched = benchmark.stats.stats.median / runs
+    speedup = per_run_reference / per_run_batched
+    values = result.metrics.set_index(["variant", "metric"])["value"]
+    worst = max(abs(values[sweep.variants[i].name, "J_tot"] / r["J_tot"] - 1) for i, r in zip(picks, refs))
+    benchmark.extra_info.update(runs=runs, horizon_s=HORIZON, speedup_vs_reference=round(speedup, 1), max_rel_diff_J=worst)
+    assert worst < 1e-9
+    assert speedup >= 10, f"batched engine only {speedup:.1f}x faster per run than the reference loop"
+
+
+def test_batched_sweep_memory_stays_under_500_mib(sweep):
+    tracemalloc.start()
+    try:
+        run(sweep, traces=False)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 500 * 2**20, f"peak traced memory {peak / 2**20:.0f} MiB"
