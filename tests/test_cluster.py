@@ -50,6 +50,20 @@ def test_cli_sweep_on_a_local_dask_cluster(tmp_path):
     assert "dask local cluster, 1 worker" in (tmp_path / "dask" / "torben_fig3_sweep" / "manifest.json").read_text()
 
 
+def test_cli_sweep_through_a_scheduler_address(tmp_path):
+    from distributed import LocalCluster
+
+    args = ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15", "--gnss", "dgnss", "--quiet"]
+    plain = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "plain")])
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        remote = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "remote"), "--dask", cluster.scheduler_address])
+    assert plain.exit_code == 0 and remote.exit_code == 0, plain.output + remote.output
+    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep" / "metrics.csv")
+    b = pd.read_csv(tmp_path / "remote" / "torben_fig3_sweep" / "metrics.csv")
+    assert _values(a) == _values(b)
+    assert f"dask scheduler {cluster.scheduler_address}" in (tmp_path / "remote" / "torben_fig3_sweep" / "manifest.json").read_text()
+
+
 def test_unreachable_scheduler_is_a_clear_error():
     with pytest.raises(ClusterError, match="cannot reach the scheduler"), dask_client("tcp://127.0.0.1:9", timeout=1.0):
         pass
