@@ -14,6 +14,7 @@ memory. Runs are 20 s long, so a round takes seconds; the speed-up grows with th
 
 import time
 import tracemalloc
+from pathlib import Path
 
 import pytest
 
@@ -22,7 +23,7 @@ from marinebench.experiments.reference import reference_run
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
 
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[1]
 CFG = ROOT / "configs" / "torben_fig3.yaml"
 HORIZON = 20.0  # simulated seconds per run
 

@@ -7,7 +7,6 @@ errors, infeasible designs, a step too large for the observer gains).
 from __future__ import annotations
 
 import json
-import os
 import sys
 from enum import Enum
 from pathlib import Path
@@ -114,7 +113,7 @@ def sweep(
     import time as _time
     from contextlib import nullcontext
 
-    from marinebench.experiments.cluster import dask_client
+    from marinebench.experiments.cluster import dask_client, describe
     from marinebench.experiments.sweep import (
         discard_partial,
         run_chunked,
@@ -150,6 +149,7 @@ def sweep(
             TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
         ) as bar:
             task = bar.add_task("sweep", total=1)
+            executor = describe(dask, client)
             metrics, wall, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
                                              on_start=lambda k: bar.update(task, total=k), client=client)
             bar.update(task, completed=bar.tasks[0].total)
@@ -166,7 +166,7 @@ def sweep(
             experiment=exp.name, config_files={"experiment": str(config)}, overrides=set_ or [], seed=exp.seed, seeds=exp.seeds,
             runs=len(exp.variants) * exp.seeds,
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
-            dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=_executor(dask, workers),
+            dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
             wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),
             assumptions=model_assumptions({"": base.scenario}) + list(base.assumptions)))
@@ -174,13 +174,6 @@ def sweep(
     if not quiet:
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
                   f"({wall:.1f} s of simulation summed over the {ran} batch(es) run) -> {target}", markup=False)
-
-
-def _executor(dask: str | None, workers: int | None) -> str:
-    """The manifest's record of where the batches ran."""
-    if dask is None:
-        return "this process"
-    return f"dask local cluster, {workers or os.cpu_count()} worker process(es)" if dask == "local" else f"dask scheduler {dask}"
 
 
 @app.command()

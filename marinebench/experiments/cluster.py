@@ -46,3 +46,11 @@ def dask_client(address: str, workers: int | None = None, timeout: float = 10.0)
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def describe(address: str | None, client) -> str:
+    """Where the batches run, for the manifest: this process, or the Dask cluster with its live worker count."""
+    if client is None:
+        return "this process"
+    n = len(client.scheduler_info()["workers"])
+    return f"dask local cluster, {n} worker process(es)" if address == "local" else f"dask scheduler {address}, {n} worker(s)"
