@@ -47,11 +47,10 @@ class LiuEsoObserver:
     def __init__(self, tunings: list[LiuEsoTuning], Minv: np.ndarray) -> None:
         self.eps = np.array([t.eps for t in tunings])[:, None]
         self.k = np.array([t.k for t in tunings])
-        self.modes = {t.mode for t in tunings}
-        if len(self.modes) != 1 or len({(t.alpha, t.fal_d) for t in tunings}) != 1:
-            raise ValueError("one batch of liu_eso observers must share mode, alpha and fal_d")
-        self.mode = tunings[0].mode
-        self.alpha, self.fal_d = tunings[0].alpha, tunings[0].fal_d
+        # mode, alpha and fal_d may differ per run: linear and fal tunings share one batch
+        self.fal_runs = np.array([t.mode == "fal" for t in tunings])[:, None]
+        self.alpha = np.array([t.alpha for t in tunings])[:, None]
+        self.fal_d = np.array([t.fal_d for t in tunings])[:, None]
         self.Minv = Minv
 
     def init(self) -> np.ndarray:
@@ -59,14 +58,16 @@ class LiuEsoObserver:
 
     def _corrections(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         eps, k = self.eps, self.k
-        if self.mode == "linear":
-            return k[:, :1] / eps * e, k[:, 1:2] / eps**2 * e, k[:, 2:3] / eps**3 * e
-        a, es = self.alpha, e / eps**2
-        return (
-            eps * k[:, :1] * fal(es, a, self.fal_d),
-            k[:, 1:2] * fal(es, 2 * a - 1, self.fal_d),
-            k[:, 2:3] / eps * fal(es, 3 * a - 2, self.fal_d),
+        linear = (k[:, :1] / eps * e, k[:, 1:2] / eps**2 * e, k[:, 2:3] / eps**3 * e)
+        if not self.fal_runs.any():
+            return linear
+        a, d, es = self.alpha, self.fal_d, e / eps**2
+        fal_terms = (
+            eps * k[:, :1] * fal(es, a, d),
+            k[:, 1:2] * fal(es, 2 * a - 1, d),
+            k[:, 2:3] / eps * fal(es, 3 * a - 2, d),
         )
+        return tuple(np.where(self.fal_runs, f, g) for f, g in zip(fal_terms, linear))
 
     def derivative(self, xhat: np.ndarray, y: np.ndarray, tau: np.ndarray) -> np.ndarray:
         psi = y[:, 2]
