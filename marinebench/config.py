@@ -21,6 +21,7 @@ from marinebench.dp_scenario import DpScenario
 from marinebench.errors import ConfigError
 from marinebench.observers.bejarano import BejaranoTuning
 from marinebench.observers.cdo import RovObserverSpec
+from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.dp import NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoTuning
 from marinebench.rov_scenario import RovScenario
@@ -44,6 +45,8 @@ AnyScenario = Annotated[
 NAME = r"^[A-Za-z0-9_.+-]+$"
 DIAGNOSTICS = ("n_resets", "n_jumps", "log10_cond_mean", "cond_max")  # per-run observer diagnostics (DP observers)
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
+# What an error metric or a table covers when it names no signals: what the scenario kind's observers estimate.
+DEFAULT_SIGNALS = {"open_loop_asv": SIGNALS, "dp_supply": DP_SIGNALS, "rov_tracking": ("depth", "yaw")}
 
 
 class Variant(BaseModel):
@@ -75,7 +78,10 @@ class ErrorMetric(BaseModel):
     model_config = ConfigDict(extra="forbid")
     kind: Literal["std", "rmse", "max_abs"] = "std"
     name: str | None = Field(None, pattern=NAME, description="metric name in metrics.csv (default: the kind)")
-    signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
+    signals: list[str] | None = Field(
+        None, description="default: every signal the scenario kind's observers estimate (open_loop_asv: u, v, r, "
+        "sigma_u, sigma_v, sigma_r; dp_supply: x, y, psi, b_x, b_y, b_n, u, v, r; rov_tracking: depth, yaw)",
+    )
     t_start: float = Field(
         5.0,
         ge=0,
@@ -181,7 +187,7 @@ class TableSpec(BaseModel):
     title: str
     metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
     metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
-    signals: list[str] = Field(default_factory=lambda: list(SIGNALS))
+    signals: list[str] | None = Field(None, description="default: the signals of the tabulated metrics (z for j_tot)")
     paper: PaperValues | None = None
     relative: tuple[str, str] | None = Field(
         None, description="add a row with the % change of the first variant's means against the second's "
@@ -300,9 +306,27 @@ class Experiment(BaseModel):
     def _cross_references(self) -> Experiment:
         if (self.scenario is None) == (self.scenarios is None):
             raise ValueError("give exactly one of 'scenario' or 'scenarios'")
+        self._fill_signals()
         if self.scenarios is not None:
             return self._check_study()
         return self._check_single()
+
+    def _fill_signals(self) -> None:
+        """Default signals of error metrics and the table from the scenario kind (written out in the resolved config)."""
+        worlds = [self.scenario] if self.scenario is not None else list(self.scenarios.values())
+        if not worlds:
+            return
+        default = DEFAULT_SIGNALS[worlds[0].kind]
+        for m in self.metrics:
+            if m.kind in ("std", "rmse", "max_abs") and m.signals is None:
+                m.signals = list(default)
+        if self.table is not None and self.table.signals is None:
+            listed = set(self.table.metrics or [self.table.metric])
+            signals: list[str] = []
+            for m in self.metrics:
+                if m.label in listed:
+                    signals += [s for s in (["z"] if m.kind == "j_tot" else m.signals) if s not in signals]
+            self.table.signals = signals or list(default)
 
     def _check_study(self) -> Experiment:
         """A multi-scenario experiment: check the scenario references, then each part as a single experiment."""

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from marinebench.controllers.spec import ControllerSpec
+from marinebench.registry import kinds
 
 SPECS = [
     ControllerSpec(kind="rise"),
@@ -11,6 +12,10 @@ SPECS = [
     ControllerSpec(kind="srise"),
 ]
 IDS = ["rise_subjugator", "rise_table2_equivalent", "srise"]
+
+
+def test_every_registered_controller_kind_is_in_the_suite():
+    assert {s.kind for s in SPECS} == set(kinds()["controllers"])
 
 
 def errors(steps: int, batch: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

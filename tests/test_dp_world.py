@@ -218,3 +218,23 @@ def test_design_vessel_separates_the_observer_model_from_the_plant():
     same = short("scenario.design_vessel={kind: supply_dp_linear}")
     default = short()
     assert same["resetting", "J_tot"] == pytest.approx(default["resetting", "J_tot"], rel=1e-12)
+
+
+@pytest.mark.parametrize("scenario, expected", [
+    ("dp_impulse.yaml", ["x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r"]),
+    ("cs2_noisy.yaml", ["u", "v", "r", "sigma_u", "sigma_v", "sigma_r"]),
+    ("rov_s1.yaml", ["depth", "yaw"]),
+])
+def test_error_metrics_and_tables_default_to_the_scenario_kinds_signals(tmp_path, scenario, expected):
+    observer = {"kind": "npo"} if scenario.startswith("dp") else {"kind": "liu_eso"}
+    variant = {"name": "a", **({"controller": {"kind": "rise"}} if scenario.startswith("rov") else {"observer": observer})}
+    doc = {"scenario": str(ROOT / "scenarios" / scenario), "variants": [variant],
+           "metrics": [{"kind": "rmse"}, {"kind": "j_tot"}] if scenario.startswith("dp") else [{"kind": "rmse"}],
+           "table": {"title": "t", "metrics": ["rmse"]}}
+    path = tmp_path / "x.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    exp, _ = load_experiment(path)
+    assert exp.metrics[0].signals == expected and exp.table.signals == expected
+    if scenario.startswith("dp"):
+        path.write_text(yaml.safe_dump({**doc, "table": {"title": "t", "metrics": ["J_tot"]}}))
+        assert load_experiment(path)[0].table.signals == ["z"]

@@ -1,0 +1,76 @@
+"""Conformance over the registry (DESIGN.md: one suite runs every registered observer).
+
+Every observer kind that ``marinebench list`` reports is run through the real config path (YAML document,
+validation, preflight, runner) on a noiseless world of its own scenario kind, and must converge: its
+largest error late in the run is a small fraction of its largest error early on. Registering a new
+observer kind without a case here fails the first test.
+"""
+
+import pytest
+import yaml
+
+from marinebench.config import load_experiment, preflight
+from marinebench.experiments.runner import run
+from marinebench.registry import kinds
+
+from .conftest import ROOT
+
+CONSTANT = {"kind": "constant"}
+
+# Open loop, constant thrust, torque and environment: CyberShip II settles in a steady turn, so the true
+# lumped disturbance sigma is constant and an exact observer must reach it. Estimates start at 0.
+STEADY_ASV = {
+    "kind": "open_loop_asv", "name": "steady", "horizon": 40.0, "dt": 0.005,
+    "inputs": {"F_u": {**CONSTANT, "value": 3.0}, "tau_r": {**CONSTANT, "value": 0.1}},
+    "disturbances": {"F_wu": {**CONSTANT, "value": 0.3}, "F_wv": {**CONSTANT, "value": -0.2},
+                     "tau_wr": {**CONSTANT, "value": 0.02}},
+}
+# Torben's sway impulse without waves, sensor errors or notch: the bias is constant after the impulse.
+CLEAN_DP = {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"), "horizon": 600.0, "waves": None,
+            "sensors": {"gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "notch": False}}
+# The ROV holding a pose with exact samples; the observers start 5 cm and 10 deg off.
+CLEAN_ROV = {"from": str(ROOT / "scenarios" / "rov_s1.yaml"), "horizon": 10.0, "estimate_offset": [0.05, 10.0],
+             "sensors": {"depth_noise": 0.0, "yaw_noise_deg": 0.0},
+             "depth_ref": [[0, 0.1]], "yaw_ref_deg": [[0, 20.0]]}
+DP_UNITS = {"bias_units": "10kN", "moment_arm": "L"}
+
+# kind -> (scenario, tunings to check, early window, late window)
+CASES = {
+    "liu_eso": (STEADY_ASV, [{"eps": 0.1}, {"eps": 0.1, "mode": "fal"}], (0.0, 5.0), (35.0, None)),
+    "bejarano": (STEADY_ASV, [{"delta_psi1": 1.0, "delta_p1": 1.0, "k_n": 1}, {}], (0.0, 5.0), (35.0, None)),
+    "npo": (CLEAN_DP, [DP_UNITS], (0.0, 200.0), (550.0, None)),
+    "resetting_fto": (CLEAN_DP, [{**DP_UNITS, "q2_scale": 1.0e8}], (0.0, 200.0), (550.0, None)),
+    "cdo": (CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
+    "eo": (CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
+}
+
+
+def test_every_registered_observer_kind_has_a_conformance_case():
+    assert set(CASES) == set(kinds()["observers"])
+
+
+def experiment(tmp_path, kind: str):
+    scenario, tunings, early, late = CASES[kind]
+    closed_loop = scenario is CLEAN_ROV
+    variants = [{"name": f"{kind}_{i}", "observer": {"kind": kind, **tuning},
+                 **({"controller": {"kind": "rise"}} if closed_loop else {})} for i, tuning in enumerate(tunings)]
+    window = [{"kind": "max_abs", "name": name, "t_start": a, **({"t_end": b} if b is not None else {})}
+              for name, (a, b) in (("early", early), ("late", late))]
+    doc = {"scenario": scenario, "seeds": 1, "variants": variants, "metrics": window,
+           **({"engine": {"stiffness_limit": 2.0}} if scenario is CLEAN_DP else {})}
+    path = tmp_path / f"{kind}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    exp, _ = load_experiment(path)
+    preflight(exp, path)
+    return exp
+
+
+@pytest.mark.parametrize("kind", sorted(CASES))
+def test_observer_converges_on_a_noiseless_plant_of_its_own_model(tmp_path, kind):
+    m = run(experiment(tmp_path, kind), traces=False).metrics
+    assert (m["status"] == "ok").all()
+    m = m[m["metric"].isin(["early", "late"])]
+    values = m.pivot_table(index=["variant", "signal"], columns="metric", values="value")
+    assert len(values) >= 2
+    for (variant, signal), row in values.iterrows():
+        assert row["late"] <= 1e-3 * row["early"] + 1e-9, (variant, signal, row["early"], row["late"])
