@@ -25,4 +25,5 @@ class StiffnessError(MarinebenchError):
 
 
 class ClusterError(MarinebenchError):
-    """Dask is not installed, or its scheduler cannot be reached."""
+    """Dask is not installed, its scheduler cannot be reached, its workers cannot run this marinebench, or a
+    chunk failed on a worker."""

@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.config import load_experiment
 from marinebench.errors import ClusterError
-from marinebench.experiments.cluster import dask_client
+from marinebench.experiments import sweep
+from marinebench.experiments.cluster import check_workers, dask_client, source_digest
 from marinebench.experiments.sweep import run_chunked, sweep_experiment
 
 from .conftest import ROOT
@@ -76,3 +77,56 @@ def test_missing_dask_is_one_line_exit_2_and_nothing_written(tmp_path, monkeypat
     assert res.exit_code == 2 and res.output.strip().splitlines() == [
         "error: --dask: needs Dask's distributed scheduler: pip install -e '.[dask]'"]
     assert not any(tmp_path.iterdir())
+
+
+class FakeClient:
+    """Answers ``client.run`` per function as given workers would (a value or an exception per worker)."""
+
+    def __init__(self, versions: dict, digests: dict, joined: bool = True) -> None:
+        self.answers = {"version": versions, "source_digest": digests}
+        self.joined = joined
+
+    def wait_for_workers(self, n: int, timeout: float) -> None:
+        if not self.joined:
+            raise TimeoutError
+
+    def run(self, function, *args, on_error="raise"):
+        assert on_error == "return"
+        return self.answers[function.__name__]
+
+
+def test_workers_must_run_this_marinebench():
+    mine = source_digest()
+    check_workers(FakeClient({"w1": "0.1.0", "w2": "0.1.0"}, {"w1": mine, "w2": mine}))  # accepted
+    missing = FakeClient({"w1": "0.1.0", "w2": ModuleNotFoundError("marinebench")}, {"w1": mine})
+    with pytest.raises(ClusterError, match=r"not installed on 1 of 2 worker\(s\) \(e.g. w2\)"):
+        check_workers(missing)
+    other = FakeClient({"w1": "0.1.0", "w2": "0.1.0"}, {"w1": mine, "w2": "0" * 64})
+    with pytest.raises(ClusterError, match=r"1 of 2 worker\(s\) run another marinebench source"):
+        check_workers(other)
+    with pytest.raises(ClusterError, match="no worker joined"):
+        check_workers(FakeClient({}, {}, joined=False), timeout=0.1)
+
+
+def test_a_chunk_failing_on_a_worker_keeps_the_finished_chunks_and_a_rerun_resumes(tmp_path, monkeypatch):
+    from distributed import Client
+
+    base, _ = load_experiment(CFG)
+    exp = sweep_experiment(base, ["k"], None, 3, 15.0, CFG)  # 6 runs, 3 chunks of 2
+    reference, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=2)
+    real = sweep.run_chunk
+
+    def failing(e, variants, progress=None):
+        if variants[0].name == exp.variants[2].name:
+            raise MemoryError("worker ran out of memory")
+        return real(e, variants, progress)
+
+    target, partial = tmp_path / "dask", tmp_path / ".dask.partial"
+    with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as client:
+        monkeypatch.setattr(sweep, "run_chunk", failing)
+        with pytest.raises(ClusterError, match=r"chunk 1 failed on a worker \(MemoryError: worker ran out of memory\)"):
+            run_chunked(exp, target, chunk_size=2, client=client)
+        assert not (partial / "chunk-0001.csv").exists()
+        monkeypatch.setattr(sweep, "run_chunk", real)
+        resumed, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+    assert ran >= 1 and _values(resumed) == _values(reference)

@@ -2,15 +2,20 @@
 
 ``marinebench sweep ... --dask local`` starts a local cluster of worker processes (one single-threaded
 worker per core by default); ``--dask tcp://host:8786`` connects to a scheduler whose workers can import
-marinebench (the same package version: chunks are pickled experiments). Chunks of the sweep are the unit of
+marinebench. Before anything is submitted, every worker must import marinebench with the same source as
+this process (:func:`check_workers`, a digest of the package's files), since chunks are pickled experiments
+and "the same numbers as in one process" holds only for the same code. Chunks of the sweep are the unit of
 work (``experiments.sweep.run_chunked``); results come back to the client, which writes them, so workers
 need no shared file system. Dask is an optional extra: ``pip install -e '.[dask]'``.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 from contextlib import contextmanager
+from importlib.metadata import version
+from pathlib import Path
 
 from marinebench.errors import ClusterError
 
@@ -41,11 +46,43 @@ def dask_client(address: str, workers: int | None = None, timeout: float = 10.0)
         except (OSError, TimeoutError, ValueError) as exc:
             raise ClusterError(f"--dask: cannot reach the scheduler at {address!r}: {exc}") from None
     try:
+        check_workers(client, timeout)
         yield client
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def source_digest() -> str:
+    """SHA-256 over the marinebench package's Python files (relative names and bytes)."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def check_workers(client, timeout: float = 10.0) -> None:
+    """Refuse a cluster without workers, or whose workers cannot import marinebench or run other code than
+    this process. ``importlib.metadata.version`` is sent first because it unpickles on any worker, where a
+    marinebench function would not."""
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except TimeoutError:
+        raise ClusterError(f"--dask: no worker joined the scheduler within {timeout:g} s") from None
+    installed = client.run(version, "marinebench", on_error="return")
+    missing = sorted(w for w, v in installed.items() if isinstance(v, BaseException))
+    if missing:
+        raise ClusterError(f"--dask: marinebench is not installed on {len(missing)} of {len(installed)} worker(s) "
+                           f"(e.g. {missing[0]}); install this marinebench there")
+    mine = source_digest()
+    digests = client.run(source_digest, on_error="return")
+    differ = sorted(w for w, d in digests.items() if d != mine)
+    if differ:
+        raise ClusterError(f"--dask: {len(differ)} of {len(digests)} worker(s) run another marinebench source than this "
+                           f"process (e.g. {differ[0]}); install the same revision there")
 
 
 def describe(address: str | None, client) -> str:

@@ -20,7 +20,7 @@ from pydantic import ValidationError
 from scipy.stats import spearmanr
 
 from marinebench.config import Experiment, SweepSpec, Variant
-from marinebench.errors import ConfigError
+from marinebench.errors import ClusterError, ConfigError
 from marinebench.metrics.stats import mean_ci
 
 
@@ -238,7 +238,12 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         futures = {client.submit(run_chunk, exp, chunks[c], key=f"marinebench-{key[:12]}-chunk-{c:04d}"): c
                    for c in pending}
         for future in as_completed(futures):
-            csv, w = future.result()
+            try:
+                csv, w = future.result()
+            except Exception as exc:  # noqa: BLE001 -- whatever a worker raised: keep what arrived, a rerun resumes
+                client.cancel(list(futures))
+                raise ClusterError(f"--dask: chunk {futures[future]} failed on a worker ({type(exc).__name__}: {exc}); "
+                                   f"the finished chunks are kept in {partial}, rerun the same command to resume") from None
             atomic_write_text(paths[futures[future]], csv)
             wall += w
             if progress is not None:
