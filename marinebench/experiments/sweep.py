@@ -205,6 +205,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     """
     import hashlib
     import shutil
+    import uuid
 
     from marinebench.results.writer import atomic_write_text
 
@@ -235,7 +236,9 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     else:
         from distributed import as_completed
 
-        futures = {client.submit(run_chunk, exp, chunks[c], key=f"marinebench-{key[:12]}-chunk-{c:04d}"): c
+        # Readable task names, unique per attempt: a chunk cancelled by a failed attempt must not be reused.
+        attempt = uuid.uuid4().hex[:8]
+        futures = {client.submit(run_chunk, exp, chunks[c], key=f"marinebench-{key[:12]}-chunk-{c:04d}-{attempt}"): c
                    for c in pending}
         for future in as_completed(futures):
             try:
