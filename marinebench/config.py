@@ -586,12 +586,17 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
     for origin in sorted(o for o in origins if o.startswith("scenario")):  # the scenario file the key lives in
         if key == origin or key.startswith(origin + "."):
             file = origins[origin]
+    unknown = err["type"] == "extra_forbidden"
     for origin, source in origins.items():
         for tag in ("override ", "--set "):
-            if origin.startswith(tag) and (key == origin[len(tag):] or key.startswith(origin[len(tag):] + ".")):
+            if not origin.startswith(tag):
+                continue
+            dotted = origin[len(tag):]
+            # the key set there, a field inside it, or an unknown key the --set created on its way down
+            if key == dotted or key.startswith(dotted + ".") or (unknown and dotted.startswith(key + ".")):
                 file = source
     msg = err["msg"].removeprefix("Value error, ")
-    if err["type"] == "extra_forbidden":
+    if unknown:
         msg = "unknown key"
     where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
     if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'

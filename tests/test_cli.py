@@ -96,6 +96,8 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     assert res.exit_code == 2 and "no item named 'nope'" in res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "seeds"])
     assert res.exit_code == 2 and "expected dotted.key=value" in res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "engine.nosuch.deeper=1"])  # a new key, and its parent
+    assert res.exit_code == 2 and res.output.strip() == "error: --set: engine.nosuch: unknown key"
 
 
 def test_validate_all_committed_configs_and_scenarios():
