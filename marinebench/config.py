@@ -318,7 +318,7 @@ class Experiment(BaseModel):
             return
         default = DEFAULT_SIGNALS[worlds[0].kind]
         for m in self.metrics:
-            if m.kind in ("std", "rmse", "max_abs") and m.signals is None:
+            if isinstance(m, ErrorMetric) and m.signals is None:
                 m.signals = list(default)
         if self.table is not None and self.table.signals is None:
             listed = set(self.table.metrics or [self.table.metric])

@@ -58,16 +58,21 @@ class LiuEsoObserver:
 
     def _corrections(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         eps, k = self.eps, self.k
-        linear = (k[:, :1] / eps * e, k[:, 1:2] / eps**2 * e, k[:, 2:3] / eps**3 * e)
         if not self.fal_runs.any():
-            return linear
+            return self._linear(e)
         a, d, es = self.alpha, self.fal_d, e / eps**2
         fal_terms = (
             eps * k[:, :1] * fal(es, a, d),
             k[:, 1:2] * fal(es, 2 * a - 1, d),
             k[:, 2:3] / eps * fal(es, 3 * a - 2, d),
         )
-        return tuple(np.where(self.fal_runs, f, g) for f, g in zip(fal_terms, linear))
+        if self.fal_runs.all():
+            return fal_terms
+        return tuple(np.where(self.fal_runs, f, g) for f, g in zip(fal_terms, self._linear(e)))
+
+    def _linear(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        eps, k = self.eps, self.k
+        return k[:, :1] / eps * e, k[:, 1:2] / eps**2 * e, k[:, 2:3] / eps**3 * e
 
     def derivative(self, xhat: np.ndarray, y: np.ndarray, tau: np.ndarray) -> np.ndarray:
         psi = y[:, 2]
