@@ -25,8 +25,10 @@ STEADY_ASV = {
     "disturbances": {"F_wu": {**CONSTANT, "value": 0.3}, "F_wv": {**CONSTANT, "value": -0.2},
                      "tau_wr": {**CONSTANT, "value": 0.02}},
 }
-# Torben's sway impulse without waves, sensor errors or notch: the bias is constant after the impulse.
+# Torben's sway impulse without waves, sensor errors, notch or model mismatch: the bias is constant after
+# the impulse.
 CLEAN_DP = {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"), "horizon": 600.0, "waves": None,
+            "vessel": {"kind": "supply_dp_linear"}, "design_vessel": None,
             "sensors": {"gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "notch": False}}
 # The ROV holding a pose with exact samples; the observers start 5 cm and 10 deg off.
 CLEAN_ROV = {"from": str(ROOT / "scenarios" / "rov_s1.yaml"), "horizon": 10.0, "estimate_offset": [0.05, 10.0],

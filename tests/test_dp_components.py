@@ -152,7 +152,7 @@ def test_shipx_mass_matrix_must_be_positive_definite(tmp_path):
 
     from .conftest import ROOT
 
-    res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "torben_fig1_mismatch.yaml"), "--out", str(tmp_path / "o"),
+    res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "torben_fig1.yaml"), "--out", str(tmp_path / "o"),
                                    "--set", "scenario.vessel.M=[[1, 0, 0], [0, -1, 0], [0, 0, 1]]"])
     assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario.vessel.M: M must be positive definite"
     assert not (tmp_path / "o").exists()

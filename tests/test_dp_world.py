@@ -13,7 +13,8 @@ from marinebench.sim.recorders import NormIntegral
 
 from .conftest import ROOT
 
-CONFIG = ROOT / "configs" / "torben_fig1.yaml"
+CONFIG = ROOT / "configs" / "torben_fig1.yaml"  # plant ShipX LF (model B), observers on model A
+MATCHED = ROOT / "configs" / "torben_fig1_matched.yaml"  # plant = observers' model (model A)
 
 
 def test_events_happen_at_configured_times():
@@ -65,8 +66,8 @@ def test_norm_integral_matches_numpy():
     np.testing.assert_allclose(rec.value, total)
 
 
-def short(*sets):
-    exp, _ = load_experiment(CONFIG, ["scenario.horizon=120", "seeds=1", "figures=[]", *sets])
+def short(*sets, config=CONFIG):
+    exp, _ = load_experiment(config, ["scenario.horizon=120", "seeds=1", "figures=[]", *sets])
     return run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
 
 
@@ -192,7 +193,7 @@ def test_discrete_fto_is_exact_through_the_engine(scheme):
               "variants.1.observer.k=1", "variants.1.observer.eps=[1.0e-9, 1.0e-9, 1.0e-9]",
               f"variants.0.observer.discretization={scheme}", f"variants.1.observer.discretization={scheme}",
               "metrics=[{kind: j_tot, name: J_before, t_end: 2.5}, {kind: j_tot, name: J_after, t_start: 2.5}]",
-              "table.metrics=[J_before, J_after]")
+              "table.metrics=[J_before, J_after]", config=MATCHED)
     assert m["resetting", "J_before"] > 1e-3  # the observers start from zero: a real error to remove
     if scheme == "predictor":
         assert m["resetting", "J_after"] < 1e-9 * m["resetting", "J_before"]
@@ -201,13 +202,12 @@ def test_discrete_fto_is_exact_through_the_engine(scheme):
 
 
 def test_design_vessel_separates_the_observer_model_from_the_plant():
-    """Plant: ShipX LF (model B); observers: designed and run on model A. The default is the plant's own."""
+    """Plant: ShipX LF (model B); observers: designed and run on model A (the committed scenarios, as the
+    paper's high-fidelity plant against its design model). Without design_vessel: the plant's own."""
     from marinebench.experiments.runner import make_observer, plant_of
     from marinebench.models.supply import SupplyVessel, SupplyVesselParams
 
-    exp, _ = load_experiment(CONFIG, ["scenario.horizon=60", "seeds=1", "figures=[]",
-                                      "scenario.vessel.kind=supply_shipx_lf",
-                                      "scenario.design_vessel={kind: supply_dp_linear}"])
+    exp, _ = load_experiment(CONFIG, ["scenario.horizon=60", "seeds=1", "figures=[]"])
     world = DpWorld(exp.scenario, 0, np.zeros(1, dtype=int))
     observer = make_observer("npo", [exp.variants[0].observer], exp.scenario, plant_of(exp.scenario))
     model_a = SupplyVessel(SupplyVesselParams())
@@ -215,8 +215,8 @@ def test_design_vessel_separates_the_observer_model_from_the_plant():
     assert world.plant.params.kind == "supply_shipx_lf" and world.plant.M[1, 1] == pytest.approx(8.546e6)
     np.testing.assert_allclose(world.scale[0], 82.8)  # the KPI's bis units are the simulated vessel's
     # an explicit design_vessel equal to the plant changes nothing
-    same = short("scenario.design_vessel={kind: supply_dp_linear}")
-    default = short()
+    same = short("scenario.design_vessel={kind: supply_dp_linear}", config=MATCHED)
+    default = short(config=MATCHED)
     assert same["resetting", "J_tot"] == pytest.approx(default["resetting", "J_tot"], rel=1e-12)
 
 

@@ -1,14 +1,14 @@
 """MSS supply vessels for dynamic positioning, models (A) and (B) of ``shared/reference/models.md`` section 2b.
 
 (A) ``supply_dp_linear``: Fossen, Sagatun & Sorensen (1996), MSS ``supply.m`` / PythonVehicleSimulator
-``supply.py``, a 3-DOF linear low-frequency model given in the bis system; the default plant and the
-observers' design model, because its M and D are fully published.
+``supply.py``, a 3-DOF linear low-frequency model given in the bis system; the observers' design model
+(its M and D are fully published) and the default plant of a scenario that names no vessel.
 (B) ``supply_shipx_lf``: the low-frequency 3-DOF part of the MSS ShipX 6-DOF "Supply vessel" (the
 simulator Torben et al. most likely used): M = (M_RB + M_A)[1,2,6] and the viscous damping at low
 frequency, as read from ``supply.mat`` in models.md; the frequency-dependent added mass and damping
 (fluid memory) and the 6-DOF coupling are not available here. Used as a *plant* with observers designed
 on (A), it stands in for the paper's mismatch between its "high-fidelity" simulator and the "highly
-simplified control design model" (41); see ``DpScenario.design_vessel``.
+simplified control design model" (41); the committed Torben scenarios do this (``DpScenario.design_vessel``).
 
 Low-frequency dynamics with a bias load b (NED, force units), Torben et al. eq. (41):
 
