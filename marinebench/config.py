@@ -642,11 +642,12 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
         if closed_loop != (v.controller is not None):
             need = "a 'controller'" if closed_loop else "an 'observer'"
-            raise ConfigError(file, f"variants.{i}", f"a {exp.scenario.kind} scenario needs {need} in every variant")
+            raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
         if closed_loop:
             continue
-        if v.observer.kind not in observer_kinds_for(exp.scenario):
-            raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to a {exp.scenario.kind} scenario")
+        if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
+            raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
+                              f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
         try:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))
         except DesignError as exc:

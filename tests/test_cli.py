@@ -66,6 +66,9 @@ BAD = {
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
+    "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "npo"}),
+                                  "variants.0.observer.kind: 'npo' does not apply to scenario kind open_loop_asv "
+                                  "(its observers: bejarano, liu_eso)"),
 }
 
 
