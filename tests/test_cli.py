@@ -67,8 +67,8 @@ BAD = {
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
     "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "npo"}),
-                                  "variants.0.observer.kind: 'npo' does not apply to scenario kind open_loop_asv "
-                                  "(its observers: bejarano, liu_eso)"),
+                                  ("variants.0.observer.kind: 'npo' does not apply to scenario kind open_loop_asv "
+                                   "(its observers: bejarano, liu_eso)")),
 }
 
 

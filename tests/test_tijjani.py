@@ -5,6 +5,7 @@ import pytest
 import yaml
 
 from marinebench.config import load_experiment, load_scenario, preflight
+from marinebench.controllers.rise import RISE_PRESETS
 from marinebench.controllers.spec import ControllerSpec
 from marinebench.design.cdo import (
     BINOMIAL,
@@ -143,6 +144,18 @@ def test_recovery_time_counts_from_the_end_of_each_push():
 def test_feedforward_needs_an_observer():
     with pytest.raises(ValueError, match="needs feedback"):
         ControllerSpec(kind="srise", disturbance_feedforward=True)
+
+
+def test_gain_overrides_are_checked_not_ignored():
+    """A misspelt or out-of-range gain override is a config error (it used to be dropped silently)."""
+    with pytest.raises(ValueError, match=r"depth: unknown srise gain\(s\) \['bogus'\]"):
+        ControllerSpec(kind="srise", depth={"bogus": 1.0})
+    with pytest.raises(ValueError, match=r"yaw\.delta1: Input should be less than or equal to 1"):
+        ControllerSpec(kind="srise", yaw={"delta1": 2.0})
+    with pytest.raises(ValueError, match=r"yaw: unknown rise gain\(s\) \['k0'\]"):
+        ControllerSpec(kind="rise", yaw={"k0": 1.0})  # an S+RISE gain on RISE
+    depth, yaw = ControllerSpec(kind="rise", preset="table2_equivalent", yaw={"ks": 3.0}).gains()
+    assert yaw.ks == 3.0 and depth.ks == RISE_PRESETS["table2_equivalent"][0].ks
 
 
 def test_multi_scenario_config_runs_each_variant_where_it_is_listed(tmp_path):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 
@@ -47,7 +47,23 @@ class ControllerSpec(BaseModel):
             raise ValueError("output_scale must be positive")
         if any(self.feedforward_mask()) and self.feedback == "measured":
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
+        self.gains()  # unknown or out-of-range gain overrides are config errors, not ignored
         return self
+
+    def gains(self) -> list[RiseGains] | list[SRiseGains]:
+        """(depth, yaw) gains: Table II (S+RISE) or the RISE preset, with ``depth``/``yaw`` overrides applied."""
+        model, base = (SRiseGains, (TABLE_II_DEPTH, TABLE_II_YAW)) if self.kind == "srise" else (RiseGains, RISE_PRESETS[self.preset])
+        out = []
+        for dof, default, override in zip(("depth", "yaw"), base, (self.depth, self.yaw)):
+            unknown = sorted(set(override) - set(model.model_fields))
+            if unknown:
+                raise ValueError(f"{dof}: unknown {self.kind} gain(s) {unknown} (its gains: {', '.join(model.model_fields)})")
+            try:
+                out.append(model.model_validate({**default.model_dump(), **override}))
+            except ValidationError as exc:
+                err = exc.errors()[0]
+                raise ValueError(f"{dof}.{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        return out
 
     def feedforward_mask(self) -> np.ndarray:
         """Per DOF (depth, yaw): whether the disturbance estimate is fed forward."""
@@ -61,10 +77,4 @@ class ControllerSpec(BaseModel):
         return np.broadcast_to(np.asarray(scale, dtype=float), (2,)).copy()
 
     def build(self, batch: int):
-        if self.kind == "srise":
-            gains = [TABLE_II_DEPTH.model_copy(update=self.depth), TABLE_II_YAW.model_copy(update=self.yaw)]
-            return SRise([SRiseGains.model_validate(g.model_dump()) for g in gains], batch)
-        base = RISE_PRESETS[self.preset]
-        depth = RiseGains.model_validate({**base[0].model_dump(), **self.depth})
-        yaw = RiseGains.model_validate({**base[1].model_dump(), **self.yaw})
-        return Rise([depth, yaw], batch)
+        return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)
