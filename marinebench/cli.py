@@ -169,7 +169,7 @@ def sweep(
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
             wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),
-            assumptions=model_assumptions({"": base.scenario}) + list(base.assumptions)))
+            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions)))
     discard_partial(target)
     if not quiet:
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "

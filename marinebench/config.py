@@ -219,13 +219,19 @@ class FigureSpec(BaseModel):
 
 
 class SweepParam(BaseModel):
-    """One sweepable parameter: a field of the swept variant's observer, varied over ``range``."""
+    """One sweepable parameter: a setting of the swept variant, varied over ``range``.
+
+    ``key`` is a field of the variant's observer (``k``, ``delta_p1``), or a dotted path in the variant that
+    starts with ``observer.`` or ``controller.`` (``observer.cdo.lmi_decay``, ``controller.yaw.alpha``);
+    ``fixed`` keys read the same way."""
 
     model_config = ConfigDict(extra="forbid")
-    key: str = Field(..., description="observer field, e.g. k, delta, eps_scale, delta_p1")
+    key: str = Field(..., description="observer field (e.g. k, delta, eps_scale, delta_p1) or a dotted path in the "
+                     "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay)")
     range: tuple[float, float]
     spacing: Literal["linear", "log"] = "linear"
-    fixed: dict[str, Any] = Field(default_factory=dict, description="other observer fields set for this sweep")
+    fixed: dict[str, Any] = Field(default_factory=dict, description="other settings of the variant for this sweep "
+                                  "(keys as for key)")
     probes: list[float] = Field(
         default_factory=list, description="values at which table.md reports the KPI (interpolated in the spacing), "
         "each beside the first probe's, e.g. k: [0, 0.7] for 'k = 0.7 against k = 0'"
@@ -257,7 +263,9 @@ class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
     model_config = ConfigDict(extra="forbid")
-    variant: str = Field(..., description="the variant whose observer is swept")
+    variant: str = Field(..., description="the variant whose settings are swept")
+    scenario: str | None = Field(None, description="multi-scenario experiments: the scenario the sweep runs on "
+                                 "(default: the variant's first)")
     params: dict[str, SweepParam] = Field(..., min_length=1)
     groups: dict[str, dict[str, float]] = Field(
         default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
@@ -340,7 +348,11 @@ class Experiment(BaseModel):
             if f.scenario is not None and f.scenario not in self.scenarios:
                 raise ValueError(f"figures: {f.file} names unknown scenario '{f.scenario}' (have: {', '.join(self.scenarios)})")
         if self.sweep is not None:
-            raise ValueError("sweeps need a single 'scenario'")
+            name = self.sweep_scenario()
+            if name not in self.scenarios:
+                raise ValueError(f"sweep.scenario: unknown scenario '{name}' (have: {', '.join(self.scenarios)})")
+            if self.sweep.variant not in {v.name for v in self.part(name).variants}:
+                raise ValueError(f"sweep.variant '{self.sweep.variant}' does not run on scenario '{name}'")
         for name in self.scenarios:
             part = self.part(name)
             if not part.variants:
@@ -366,8 +378,28 @@ class Experiment(BaseModel):
         if table is not None and table.paper is not None:
             paper = table.paper.model_copy(update={"values": {k: v for k, v in table.paper.values.items() if k in keep}})
             table = table.model_copy(update={"paper": paper})
+        sweep = self.sweep if name == self.sweep_scenario() else None
         return self.model_copy(update={"scenario": sc, "scenarios": None, "variants": variants, "figures": figures,
-                                       "table": table})
+                                       "table": table, "sweep": sweep})
+
+    def sweep_scenario(self) -> str | None:
+        """The scenario a multi-scenario experiment's sweep runs on: ``sweep.scenario``, or the swept variant's
+        first (the experiment's first when it runs on all)."""
+        if self.scenarios is None or self.sweep is None:
+            return None
+        if self.sweep.scenario is not None:
+            return self.sweep.scenario
+        listed = next((v.scenarios for v in self.variants if v.name == self.sweep.variant), None)
+        return (listed or list(self.scenarios))[0]
+
+    def check_windows(self, horizon: float) -> None:
+        """Every error metric's time window is non-empty for this horizon (ValueError otherwise)."""
+        for m in self.metrics:
+            if m.kind in ("int", "recovery"):
+                continue
+            start, end = m.window(horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or horizon)
+            if start >= end:
+                raise ValueError(f"metric '{m.label}' window starts at {start} s, after its end {end} s")
 
     def _check_single(self) -> Experiment:
         names = [v.name for v in self.variants]
@@ -378,13 +410,9 @@ class Experiment(BaseModel):
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"metric names must be unique: {kinds}")
         for m in self.metrics:
-            if m.kind in ("int", "recovery"):
-                if self.scenario.kind != "rov_tracking":
-                    raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
-                continue
-            start, end = m.window(self.scenario.horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or self.scenario.horizon)
-            if start >= end:
-                raise ValueError(f"metric '{m.label}' window starts at {start} s, after its end {end} s")
+            if m.kind in ("int", "recovery") and self.scenario.kind != "rov_tracking":
+                raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
+        self.check_windows(self.scenario.horizon)
         if self.table is not None:
             for name in self.table.metrics or [self.table.metric]:
                 if name not in kinds and name not in DIAGNOSTICS:
@@ -659,6 +687,16 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             exp.scenario.cdo_design()
         except DesignError as exc:
             raise ConfigError(file, f"{key}.cdo", str(exc)) from None
+        checked = set()
+        for i, v in zip(positions, exp.variants):
+            if v.observer is not None and v.observer.cdo:
+                cdo = v.observer.resolve(exp.scenario)[0]
+                if cdo.model_dump_json() not in checked:
+                    try:
+                        exp.scenario.cdo_design(cdo)
+                    except DesignError as exc:
+                        raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
+                    checked.add(cdo.model_dump_json())
 
     signals = set(groups[0].observer.signals) if groups else set(ROV_SIGNALS)
     for j, m in enumerate(exp.metrics):

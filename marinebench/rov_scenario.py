@@ -110,38 +110,34 @@ class RovScenario(ScenarioBase):
 
     PER_RUN: ClassVar[tuple[str, ...]] = ()
 
-    def cdo_design(self) -> dict:
-        """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius (raises DesignError)."""
+    def cdo_design(self, cdo: CdoParams | None = None) -> dict:
+        """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius of ``cdo`` (default: the
+        scenario's); raises DesignError."""
         from marinebench.design.cdo import check, design_lmi, sample_noise_gain
 
-        c = self.cdo
+        c = self.cdo if cdo is None else cdo
         k = c.gain()
         out = {"k_star": list(k), "mode": c.k_star if isinstance(c.k_star, str) else "given", "theta": c.theta, "k_w": c.k_w}
         if c.k_star == "lmi":
             d = design_lmi(c.lmi_decay)
             out.update(lmi_decay=c.lmi_decay, lmi40_max_eig=d.lmi_max_eig,
                        poles=sorted((c.theta * d.poles_normalised.real).round(3).tolist()))
-        injection = self.cdo_injection()
         for dof, h in self.sample_periods():
             out[f"sampled_radius_{dof}"] = round(check(k, c.theta, c.k_w, h, dof), 4)
-            out[f"noise_gain_{dof}"] = round(sample_noise_gain(injection, h, c.k_w), 4)
+            out[f"noise_gain_{dof}"] = round(sample_noise_gain(c.injection(), h, c.k_w), 4)
         return out
 
-    def eo_design(self) -> dict:
+    def eo_design(self, eo: EoParams | None = None) -> dict:
         """The EO's injection gain, poles and, per DOF, its sample-noise gain (held samples, no predictor)."""
         from marinebench.design.cdo import sample_noise_gain
 
-        gain = self.eo.gain()
-        out = {"eps": self.eo.eps, "a": list(self.eo.a), "gain": gain.round(4).tolist(),
+        e = self.eo if eo is None else eo
+        gain = e.gain()
+        out = {"eps": e.eps, "a": list(e.a), "gain": gain.round(4).tolist(),
                "poles": sorted(np.roots([1.0, *gain]).real.round(3).tolist())}
         for dof, h in self.sample_periods():
             out[f"noise_gain_{dof}"] = round(sample_noise_gain(gain, h, predictor=False), 4)
         return out
-
-    def cdo_injection(self) -> np.ndarray:
-        """Delta_theta K* = [theta K*_1, theta^2 K*_2, theta^3 K*_3]."""
-        c = self.cdo
-        return np.array([c.theta, c.theta**2, c.theta**3]) * np.array(c.gain())
 
     def sample_periods(self) -> tuple[tuple[str, float], ...]:
         """(DOF, sensor period) in the state's DOF order: depth (pressure sensor), yaw (IMU)."""
@@ -161,7 +157,7 @@ class RovWorld:
     """Batched closed loop; ``controllers`` are (ControllerSpec, run indices) groups."""
 
     def __init__(self, sc: RovScenario, root_seed: int, seed_of_run: np.ndarray, controllers: list,
-                 observe: np.ndarray | None = None) -> None:
+                 observers: list | None = None) -> None:
         self.sc, self.plant = sc, LeonardLike(sc.vessel)
         B = len(seed_of_run)
         seeds = sorted({int(s) for s in seed_of_run})
@@ -195,10 +191,16 @@ class RovWorld:
         cdo[:, :, 0] = eo[:, :, 0] = self.x0[:, 0:2] + offset  # the observers start at the pose plus an offset
         w[:] = self.x0[:, 0:2]
         self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
-        self.cdo_gain = sc.cdo_injection()  # Delta_theta K*
-        self.eo_gain = sc.eo.gain()
+        # per run: the observer it is seen through (0 none, 1 CDO, 2 EO) and its CDO/EO (the scenario's, or the
+        # variant's settings over them): injection gains (B, 1, 3), predictor gain K_w (B, 1)
+        observers = [None] * B if observers is None else observers
+        self.observe = np.array([OBSERVE[o.kind if o is not None else None] for o in observers])
+        resolved = [(sc.cdo, sc.eo) if o is None else o.resolve(sc) for o in observers]
+        cdo_gain, eo_gain = {}, {}
+        self.cdo_gain = np.array([cdo_gain.setdefault(c.model_dump_json(), c.injection()) for c, _ in resolved])[:, None]
+        self.k_w = np.array([[c.k_w] for c, _ in resolved])
+        self.eo_gain = np.array([eo_gain.setdefault(e.model_dump_json(), e.gain()) for _, e in resolved])[:, None]
         self.feedback = [spec.feedback for spec, _ in controllers]
-        self.observe = np.zeros(B, dtype=int) if observe is None else np.asarray(observe)
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
         self.at_sample = np.repeat(self.x0[None, :, :2], 3, axis=0)  # reference, CDO, EO estimate at the last sample
@@ -272,7 +274,7 @@ class RovWorld:
         eo = self.eo_view(x)
         acc = self.tau / self.m_hat  # B u with the nominal inertia
         d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
-        d_w = cdo[:, :, 1] + self.sc.cdo.k_w * (w - cdo[:, :, 0])
+        d_w = cdo[:, :, 1] + self.k_w * (w - cdo[:, :, 0])
         d_eo = chain_rhs(eo, acc, self.eo_gain, self.y - eo[:, :, 0])
         return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
 

@@ -24,7 +24,7 @@ from marinebench.observers.bejarano import BejaranoObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.dp import DpObserver
 from marinebench.observers.liu_eso import LiuEsoObserver
-from marinebench.rov_scenario import OBSERVE, RovWorld
+from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
 from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, RecoveryTime, Traces, TruthLog
@@ -63,8 +63,7 @@ def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
         for b, v in enumerate(run_variant):
             spec = exp.variants[v].controller
             specs.setdefault(spec.model_dump_json(), (spec, []))[1].append(b)
-        observe = [OBSERVE[exp.variants[v].observer.kind if exp.variants[v].observer else None] for v in run_variant]
-        return RovWorld(sc, exp.seed, run_seed, list(specs.values()), np.array(observe))
+        return RovWorld(sc, exp.seed, run_seed, list(specs.values()), [exp.variants[v].observer for v in run_variant])
     per_run = {}
     for key in sc.PER_RUN:
         if any(key in v.world for v in exp.variants):
@@ -110,6 +109,9 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
         o = v.observer
         if v.controller is not None:
             out[v.name] = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
+            if o is not None and (o.cdo or o.eo) and len(exp.variants) <= 20:
+                cdo, eo = o.resolve(exp.scenario)
+                out[v.name].update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))
         elif o.kind == "bejarano":
             rot, pos = bejarano.design(o)
             out[v.name] = {

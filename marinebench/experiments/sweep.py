@@ -38,6 +38,7 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
+    exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     unknown = [p for p in params if p not in spec.params]
     if unknown:
         raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}; sweepable: {sorted(spec.params)}")
@@ -50,20 +51,57 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     variants = []
     for p in params:
         ps = spec.params[p]
-        if ps.key not in type(base.observer).model_fields:
-            raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a field of {base.observer.kind}")
+        settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
+        if _get(settings, _path(ps.key)) is _MISSING:
+            raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
+                              f"(an observer field, or a path under observer. or controller.)")
+        for key, value in ps.fixed.items():
+            _set(settings, _path(key), value)
         for i, value in enumerate(ps.values(n)):
-            try:
-                observer = type(base.observer).model_validate({**base.observer.model_dump(), **ps.fixed, ps.key: float(value)})
-            except ValidationError as exc:
-                raise ConfigError(file, f"sweep.params.{p}", exc.errors()[0]["msg"]) from None
+            _set(settings, _path(ps.key), float(value))
             for g in groups:
-                variants.append(Variant(name=f"{p}_{i:03d}_{g}", observer=observer, world=spec.groups[g],
-                                        tags={"param": p, "param_value": float(value), "gnss": g}))
+                try:
+                    variants.append(Variant.model_validate({
+                        **settings, "name": f"{p}_{i:03d}_{g}", "world": spec.groups[g],
+                        "tags": {"param": p, "param_value": float(value), "gnss": g}}))
+                except ValidationError as exc:
+                    raise ConfigError(file, f"sweep.params.{p}", f"{value:g}: {exc.errors()[0]['msg']}") from None
     update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": sweep_name(exp.name, exp.seeds)}
+    if horizon is not None:
+        try:
+            exp.check_windows(horizon)
+        except ValueError as exc:
+            raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
     scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
     update["scenario"] = scenario
     return exp.model_copy(update=update)
+
+
+_MISSING = object()
+
+
+def _path(key: str) -> list[str]:
+    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…`` as given."""
+    parts = key.split(".")
+    return parts if parts[0] in ("observer", "controller") else ["observer", *parts]
+
+
+def _get(doc: dict, path: list[str]):
+    """The value at ``path``; a key of a settings mapping (a controller's ``yaw`` gains, the CDO's overrides)
+    that is not set yet counts as present when the model declares that mapping."""
+    for i, part in enumerate(path):
+        if not isinstance(doc, dict):
+            return _MISSING
+        if part not in doc:
+            return None if i == len(path) - 1 and i >= 2 else _MISSING
+        doc = doc[part]
+    return doc
+
+
+def _set(doc: dict, path: list[str], value) -> None:
+    for part in path[:-1]:
+        doc = doc.setdefault(part, {})
+    doc[path[-1]] = value
 
 
 Curves = dict[tuple[str, str, str], pd.DataFrame]
@@ -177,7 +215,7 @@ def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path
         ax.grid(alpha=0.3)
     n_seeds = max((c.shape[1] for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    fig.suptitle(f"{exp.name}: {metric} sensitivity (one parameter at a time{seeds})", fontsize=10)
+    fig.suptitle(f"{exp.name}: {metric} sensitivity\n(one parameter at a time{seeds})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

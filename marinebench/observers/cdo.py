@@ -10,10 +10,10 @@ Gains: ``marinebench.design.cdo`` (LMI (40), (39), the per-sample check).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 
 def chain_rhs(x_hat: np.ndarray, acc: np.ndarray, gain: np.ndarray, innovation: np.ndarray) -> np.ndarray:
@@ -50,6 +50,10 @@ class CdoParams(BaseModel):
             return design_lmi(self.lmi_decay).k_star
         return BINOMIAL if self.k_star == "binomial" else self.k_star
 
+    def injection(self) -> np.ndarray:
+        """Delta_theta K* = [theta K*_1, theta^2 K*_2, theta^3 K*_3]."""
+        return np.array([self.theta, self.theta**2, self.theta**3]) * np.array(self.gain())
+
 
 class EoParams(BaseModel):
     """Extended high-gain observer (Chowdhury et al. 2022 form) on held samples; poles at -1/eps."""
@@ -71,3 +75,27 @@ class RovObserverSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["cdo", "eo"]
+    cdo: dict[str, Any] = Field(
+        default_factory=dict, description="this variant's CDO settings over the scenario's `cdo` (e.g. {lmi_decay: 0.2}); "
+        "the CDO of these runs also feeds a controller with feedback 'cdo'",
+    )
+    eo: dict[str, Any] = Field(default_factory=dict, description="this variant's EO settings over the scenario's `eo` (e.g. {eps: 0.08})")
+
+    @model_validator(mode="after")
+    def _known_settings(self):
+        for name, model in (("cdo", CdoParams), ("eo", EoParams)):
+            given = getattr(self, name)
+            unknown = sorted(set(given) - set(model.model_fields))
+            if unknown:
+                raise ValueError(f"{name}: unknown key(s) {unknown} (its keys: {', '.join(model.model_fields)})")
+            try:
+                model.model_validate(given)
+            except ValidationError as exc:
+                err = exc.errors()[0]
+                raise ValueError(f"{name}.{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        return self
+
+    def resolve(self, scenario) -> tuple[CdoParams, EoParams]:
+        """The CDO and EO of this variant's runs: the scenario's, with this variant's settings over them."""
+        return (CdoParams.model_validate({**scenario.cdo.model_dump(), **self.cdo}),
+                EoParams.model_validate({**scenario.eo.model_dump(), **self.eo}))

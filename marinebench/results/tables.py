@@ -26,6 +26,11 @@ def _window(exp: Experiment, name: str) -> str:
     return f"{name}: {m.kind} of est − truth over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 
+def settings_text(settings) -> str:
+    """``key=value, ...`` of an observer or controller, leaving out unset (None) and empty settings."""
+    return ", ".join(f"{k}={val}" for k, val in settings.model_dump().items() if val is not None and val != {})
+
+
 def fmt(x: float) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3g}"
 
@@ -86,8 +91,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     lines += ["", "Variants:", ""]
     for v in exp.variants:
         where = ", ".join(v.scenarios or exp.scenario_names)
-        lines.append(f"- `{v.name}` ({where}): " + ", ".join(
-            f"{k}={val}" for k, val in (v.observer or v.controller).model_dump().items() if val is not None))
+        lines.append(f"- `{v.name}` ({where}): " + settings_text(v.observer or v.controller))
     return "\n".join(lines) + "\n"
 
 
@@ -145,7 +149,5 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
         lines.append("| " + " | ".join(row) + " |")
     lines += ["", "Variants:", ""]
     for v in exp.variants:
-        parts = [t.model_dump() for t in (v.controller, v.observer) if t is not None]
-        lines.append(f"- `{v.name}`: " + "; ".join(", ".join(f"{k}={val}" for k, val in t.items() if val is not None)
-                                                    for t in parts))
+        lines.append(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer) if t is not None))
     return "\n".join(lines) + "\n"

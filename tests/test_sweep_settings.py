@@ -1,0 +1,81 @@
+"""Sweeps of any setting of a variant: controller gains, the ROV observers' settings (per run), and one
+scenario of a multi-scenario experiment."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.config import load_experiment, preflight
+from marinebench.errors import ConfigError
+from marinebench.experiments.runner import run
+from marinebench.experiments.sweep import sweep_experiment
+
+from .conftest import ROOT
+
+OBSERVERS = ROOT / "configs" / "tijjani_observers.yaml"
+TABLE3 = ROOT / "configs" / "tijjani_table3.yaml"
+
+
+def test_sweep_points_set_the_swept_gain_and_keep_the_rest_of_the_variant():
+    base, _ = load_experiment(TABLE3)
+    exp = sweep_experiment(base, ["yaw_alpha"], None, 3, 2.0, TABLE3)
+    assert exp.scenarios is None and exp.scenario.name == "S1"  # the sweep's scenario of the study
+    source = next(v for v in base.variants if v.name == "srise").controller
+    assert [v.controller.yaw["alpha"] for v in exp.variants] == pytest.approx(np.geomspace(0.5, 20.0, 3))
+    assert all(v.controller.model_copy(update={"yaw": {}}) == source for v in exp.variants)
+    assert [v.controller.gains()[1].alpha for v in exp.variants] == pytest.approx(np.geomspace(0.5, 20.0, 3))
+
+
+def _metrics(config, *sets):
+    exp, _ = load_experiment(config, ["scenario.horizon=6", "seeds=1", "figures=[]", *sets])
+    return run(exp, traces=False).metrics.set_index(["variant", "signal", "metric"])["value"].sort_index()
+
+
+def test_a_variants_cdo_setting_acts_on_its_runs_only():
+    """{lmi_decay: 0.2} on the cdo variant gives exactly what scenario.cdo.lmi_decay = 0.2 gives it, while the
+    other variant of the same batch keeps the scenario's CDO."""
+    per_variant = _metrics(OBSERVERS, "variants[cdo].observer.cdo={lmi_decay: 0.2}")
+    in_world = _metrics(OBSERVERS, "scenario.cdo.lmi_decay=0.2")
+    default = _metrics(OBSERVERS)
+    np.testing.assert_array_equal(per_variant.loc["cdo"], in_world.loc["cdo"])
+    np.testing.assert_array_equal(per_variant.loc["eo"], default.loc["eo"])
+    assert not np.allclose(per_variant.loc["cdo"], default.loc["cdo"])
+
+
+def test_bad_sweep_and_observer_settings_are_config_errors():
+    with pytest.raises(ConfigError, match=r"variants\.0\.observer.*cdo: unknown key\(s\) \['mu'\]"):
+        load_experiment(OBSERVERS, ["variants[cdo].observer.cdo={mu: 0.2}"])
+    unstable, _ = load_experiment(OBSERVERS, ["variants[cdo].observer.cdo={lmi_decay: 1.5}"])
+    with pytest.raises(ConfigError, match=r"variants\.0\.observer\.cdo: CDO depth: the per-sample error map has spectral"):
+        preflight(unstable, OBSERVERS)
+    base, _ = load_experiment(OBSERVERS, ["sweep.params.theta.key=observer.cdo_theta"])
+    with pytest.raises(ConfigError, match=r"sweep\.params\.theta\.key: 'observer\.cdo_theta' is not a setting of variant 'cdo'"):
+        sweep_experiment(base, ["theta"], None, 2, 1.0, OBSERVERS)
+    base, _ = load_experiment(TABLE3, ["sweep.params.yaw_k0.key=controller.yaw.kzero"])
+    with pytest.raises(ConfigError, match=r"sweep\.params\.yaw_k0: .*unknown srise gain\(s\) \['kzero'\]"):
+        sweep_experiment(base, ["yaw_k0"], None, 2, 1.0, TABLE3)
+    with pytest.raises(ConfigError, match=r"sweep\.scenario: unknown scenario 'S9'"):
+        load_experiment(TABLE3, ["sweep.scenario=S9"])
+    with pytest.raises(ConfigError, match=r"sweep\.variant 'srise' does not run on scenario 'S3'"):
+        load_experiment(TABLE3, ["sweep.scenario=S3"])
+
+
+def test_cli_sweeps_a_rov_observer_setting(tmp_path):
+    res = CliRunner().invoke(app, ["sweep", "lmi_decay", "--config", str(OBSERVERS), "--n", "2", "--horizon", "6",
+                                   "--seeds", "1", "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    m = pd.read_csv(tmp_path / "tijjani_observers_sweep" / "metrics.csv")
+    cdo = m[(m["metric"] == "rmse_each") & (m["signal"] == "depth_cdo")].sort_values("param_value")
+    assert cdo["param_value"].tolist() == pytest.approx([0.05, 1.0])
+    assert cdo["value"].iloc[0] != cdo["value"].iloc[1]
+    assert (tmp_path / "tijjani_observers_sweep" / "figures" / "sweep.png").exists()
+
+
+def test_sweep_horizon_shorter_than_a_metric_window_is_one_line(tmp_path):
+    res = CliRunner().invoke(app, ["sweep", "lmi_decay", "--config", str(OBSERVERS), "--n", "2", "--horizon", "3",
+                                   "--out", str(tmp_path / "short"), "--quiet"])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+    assert "--horizon: 3 s: metric 'rmse_steady' window starts at 5.0 s, after its end 3.0 s" in res.output
+    assert not (tmp_path / "short").exists()
