@@ -17,7 +17,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from marinebench.errors import MarinebenchError, StiffnessError
+from marinebench.errors import ConfigError, MarinebenchError, StiffnessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation benchmarks for marine-vehicle observers.")
 err = Console(stderr=True, highlight=False, soft_wrap=True)
@@ -47,8 +47,8 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
 def run(
     configs: Annotated[list[Path], typer.Argument(help="experiment YAML files")],
     out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
-    seed: Annotated[int | None, typer.Option(help="root seed (overrides the config)")] = None,
-    seeds: Annotated[int | None, typer.Option(help="Monte-Carlo runs per variant")] = None,
+    seed: Annotated[int | None, typer.Option(min=0, help="root seed (overrides the config)")] = None,
+    seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per variant")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
     profile: Annotated[str | None, typer.Option(help="apply the config's named profile (e.g. quick)")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
@@ -96,8 +96,8 @@ def sweep(
     gnss: Annotated[str | None, typer.Option(help="comma-separated world groups (default: all)")] = None,
     horizon: Annotated[float | None, typer.Option(help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>_sweep/")] = None,
-    seed: Annotated[int | None, typer.Option(help="root seed")] = None,
-    seeds: Annotated[int | None, typer.Option(help="Monte-Carlo runs per point (default: the config's); >1 writes "
+    seed: Annotated[int | None, typer.Option(min=0, help="root seed")] = None,
+    seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
     chunk_size: Annotated[int, typer.Option(help="runs per batch; finished batches survive an interruption")] = 300,
@@ -131,8 +131,6 @@ def sweep(
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
         fail("--horizon: must be positive")
-    if seeds is not None and seeds < 1:
-        fail("--seeds: at least 1")
     try:
         base, _ = _load(config, set_ or [], seed, seeds)
         exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
@@ -194,6 +192,9 @@ def bench(
 
     try:
         base, _ = _load(config, [], None, None)
+        if base.scenario is None or base.scenario.kind != "dp_supply":
+            raise ConfigError(config, "scenario.kind", "bench compares the batched engine with the plain per-run "
+                              "reference of the DP observers, which exists for dp_supply scenarios (e.g. configs/torben_fig3.yaml)")
         exp = sweep_experiment(base, params.split(","), None, n, horizon, config)
     except MarinebenchError as exc:
         fail(str(exc))

@@ -637,6 +637,9 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
     """Load and validate an experiment config; raises ConfigError naming the file and key."""
     path = Path(path)
     doc, origins = resolve_document(path, sets, profile)
+    if "variants" not in doc and is_scenario_file(path):
+        raise ConfigError(path, "", "a scenario file (a world), not an experiment: experiments name it under "
+                          "'scenario:' (marinebench validate checks scenario files)")
     try:
         exp = Experiment.model_validate(doc)
     except ValidationError as exc:

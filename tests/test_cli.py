@@ -147,3 +147,14 @@ def test_experiment_from_another_experiment(tiny_config, tmp_path):
     derived.write_text(yaml.safe_dump({"from": "derived.yaml", "variants": []}))
     res = runner.invoke(app, ["validate", str(derived)])
     assert res.exit_code == 2 and "circular experiment reference" in res.output, res.output
+
+
+def test_wrong_kind_of_input_is_one_line(tmp_path):
+    scenario = ROOT / "scenarios" / "rov_s1.yaml"
+    res = runner.invoke(app, ["run", str(scenario), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {scenario}: a scenario file (a world), not an experiment: experiments name it under 'scenario:' "
+        "(marinebench validate checks scenario files)")
+    bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
+    assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
+    assert not (tmp_path / "o").exists()
