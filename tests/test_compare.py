@@ -1,6 +1,7 @@
 """compare: planted regressions caught, noise within tolerance not, missing cells, exit codes, CIs."""
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -51,6 +52,9 @@ def test_planted_regression_is_caught_and_listed_first(tmp_path, base_values):
     assert lines[0] == "### marinebench compare: 1 worse, 0 better, 3 same"
     first = lines[4]
     assert "WORSE" in first and "| b | v |" in first
+    # the interval is in the change column's unit (% of the baseline), around the planted +30 %
+    lo, hi = (float(x) for x in re.search(r"\| \+30\.0% \| \[\+([\d.]+)%, \+([\d.]+)%\] \|", first).groups())
+    assert 25 < lo < 30 < hi < 35
 
 
 def test_identical_results_are_all_same(tmp_path, base_values):

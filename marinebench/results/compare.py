@@ -190,7 +190,12 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
     icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
     for r in table.itertuples(index=False):
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
-        ci = "–" if np.isnan(r.ci_low) else f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
+        if np.isnan(r.ci_low):
+            ci = "–"
+        elif r.baseline:  # in the units of the change column: % of the baseline
+            ci = f"[{r.ci_low / abs(r.baseline):+.1%}, {r.ci_high / abs(r.baseline):+.1%}]"
+        else:
+            ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
         lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
                      f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
     return "\n".join(lines) + "\n"
