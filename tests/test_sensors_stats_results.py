@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from marinebench.config import apply_set
 from marinebench.errors import ConfigError
 from marinebench.metrics.stats import mean_ci
-from marinebench.results.writer import atomic_directory
+from marinebench.results.writer import atomic_directory, atomic_write_text
 from marinebench.scenario import stream_rngs
 from marinebench.sensors.noise import BandLimitedUniform
 from marinebench.sim.recorders import ErrorMoments
@@ -80,6 +80,20 @@ def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
         raise RuntimeError("interrupted")
     assert (target / "a.txt").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
+
+
+def test_atomic_outputs_get_the_modes_the_umask_gives(tmp_path):
+    """Not the 0700/0600 of mkdtemp/mkstemp: results on a shared machine are readable as any file would be."""
+    import os
+
+    old = os.umask(0o022)
+    try:
+        with atomic_directory(tmp_path / "exp") as d:
+            atomic_write_text(d / "table.md", "x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "exp").stat().st_mode & 0o777 == 0o755
+    assert (tmp_path / "exp" / "table.md").stat().st_mode & 0o777 == 0o644
 
 
 def test_apply_set_paths():

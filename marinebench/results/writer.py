@@ -21,12 +21,19 @@ from pathlib import Path
 PACKAGES = ("marinebench", "numpy", "scipy", "cvxpy", "clarabel", "pydantic", "pandas", "matplotlib", "typer", "pyyaml")
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextmanager
 def atomic_directory(target: Path) -> Iterator[Path]:
     """Yield a temporary directory that replaces ``target`` only if the block succeeds."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+    os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; results are for everyone the umask allows
     try:
         yield tmp
     except BaseException:
@@ -46,6 +53,7 @@ def atomic_write_text(path: Path, text: str) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file an ordinary file's mode
     with os.fdopen(fd, "w") as fh:
         fh.write(text)
     os.replace(tmp, path)
