@@ -8,6 +8,7 @@ and ``gnss`` (the group), which become columns of ``metrics.csv``.
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import matplotlib
@@ -58,11 +59,12 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
         for key, value in ps.fixed.items():
             _set(settings, _path(key), value)
         for i, value in enumerate(ps.values(n)):
-            _set(settings, _path(ps.key), float(value))
+            point = copy.deepcopy(settings)
+            _set(point, _path(ps.key), float(value))
             for g in groups:
                 try:
                     variants.append(Variant.model_validate({
-                        **settings, "name": f"{p}_{i:03d}_{g}", "world": spec.groups[g],
+                        **point, "name": f"{p}_{i:03d}_{g}", "world": spec.groups[g],
                         "tags": {"param": p, "param_value": float(value), "gnss": g}}))
                 except ValidationError as exc:
                     raise ConfigError(file, f"sweep.params.{p}", f"{value:g}: {exc.errors()[0]['msg']}") from None
