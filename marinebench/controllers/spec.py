@@ -5,9 +5,10 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+from marinebench.settings import over
 
 # The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
 # as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
@@ -53,17 +54,8 @@ class ControllerSpec(BaseModel):
     def gains(self) -> list[RiseGains] | list[SRiseGains]:
         """(depth, yaw) gains: Table II (S+RISE) or the RISE preset, with ``depth``/``yaw`` overrides applied."""
         model, base = (SRiseGains, (TABLE_II_DEPTH, TABLE_II_YAW)) if self.kind == "srise" else (RiseGains, RISE_PRESETS[self.preset])
-        out = []
-        for dof, default, override in zip(("depth", "yaw"), base, (self.depth, self.yaw)):
-            unknown = sorted(set(override) - set(model.model_fields))
-            if unknown:
-                raise ValueError(f"{dof}: unknown {self.kind} gain(s) {unknown} (its gains: {', '.join(model.model_fields)})")
-            try:
-                out.append(model.model_validate({**default.model_dump(), **override}))
-            except ValidationError as exc:
-                err = exc.errors()[0]
-                raise ValueError(f"{dof}.{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
-        return out
+        return [over(model, default.model_dump(), settings, dof, f"{self.kind} gain")
+                for dof, default, settings in zip(("depth", "yaw"), base, (self.depth, self.yaw))]
 
     def feedforward_mask(self) -> np.ndarray:
         """Per DOF (depth, yaw): whether the disturbance estimate is fed forward."""

@@ -13,7 +13,9 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from marinebench.settings import over
 
 
 def chain_rhs(x_hat: np.ndarray, acc: np.ndarray, gain: np.ndarray, innovation: np.ndarray) -> np.ndarray:
@@ -83,19 +85,11 @@ class RovObserverSpec(BaseModel):
 
     @model_validator(mode="after")
     def _known_settings(self):
-        for name, model in (("cdo", CdoParams), ("eo", EoParams)):
-            given = getattr(self, name)
-            unknown = sorted(set(given) - set(model.model_fields))
-            if unknown:
-                raise ValueError(f"{name}: unknown key(s) {unknown} (its keys: {', '.join(model.model_fields)})")
-            try:
-                model.model_validate(given)
-            except ValidationError as exc:
-                err = exc.errors()[0]
-                raise ValueError(f"{name}.{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+        over(CdoParams, {}, self.cdo, "cdo")  # checked over the defaults here, over the scenario's in resolve()
+        over(EoParams, {}, self.eo, "eo")
         return self
 
     def resolve(self, scenario) -> tuple[CdoParams, EoParams]:
         """The CDO and EO of this variant's runs: the scenario's, with this variant's settings over them."""
-        return (CdoParams.model_validate({**scenario.cdo.model_dump(), **self.cdo}),
-                EoParams.model_validate({**scenario.eo.model_dump(), **self.eo}))
+        return (over(CdoParams, scenario.cdo.model_dump(), self.cdo, "cdo"),
+                over(EoParams, scenario.eo.model_dump(), self.eo, "eo"))
