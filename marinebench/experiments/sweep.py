@@ -136,6 +136,8 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
     each parameter's probe values (and its change against the first probe, paired over seeds), the
     Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first."""
     curves = _per_seed_curves(metrics, metric, spec.signals if spec else None)
+    # the group column (metrics.csv's `gnss`) is headed `group` when the sweep has no named world groups
+    group = "group" if spec is not None and set(spec.groups) == {"default"} else "gnss"
     if not curves:
         return f"## Sweep: {metric} vs each parameter\n\nNo values of metric '{metric}'.\n"
     n_seeds = max(c.shape[1] for c in curves.values())
@@ -143,7 +145,7 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
              (f"{n_seeds} runs per point (seeds 0..{n_seeds - 1}); curves are the mean over seeds, with 95 % "
               "Student-t intervals over seeds in brackets" if n_seeds > 1 else "One run per point (seed index 0)")
              + "; min/max are those of the curve.", "",
-             "| param | gnss | signal | points | min | at value | max | at value | diverged |",
+             f"| param | {group} | signal | points | min | at value | max | at value | diverged |",
              "|---|---|---|---|---|---|---|---|---|"]
     for (p, g, sig), c in curves.items():
         m, diverged = c.mean(axis=1), int(c.isna().to_numpy().sum())
@@ -175,11 +177,11 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
         lines += ["", f"### {metric} at the probe values", "",
                   ("Interpolated between sweep points (in the log of the value for log spacing); the change is against "
                    "the first probe, per seed, then averaged."), "",
-                  f"| param | gnss | signal | value | {metric} | change vs first probe |", "|---|---|---|---|---|---|",
+                  f"| param | {group} | signal | value | {metric} | change vs first probe |", "|---|---|---|---|---|---|",
                   *probe_rows]
     if trend_rows:
         lines += ["", "### Trends", "", ("Spearman rank correlation of the mean curve with the value over the range "
-                  "(+1: grows monotonically)."), "", "| param | gnss | signal | range | points | Spearman ρ |",
+                  "(+1: grows monotonically)."), "", f"| param | {group} | signal | range | points | Spearman ρ |",
                   "|---|---|---|---|---|---|", *trend_rows]
     groups = list(dict.fromkeys(g for _, g, _ in curves))
     if len(groups) > 1:
