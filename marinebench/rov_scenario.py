@@ -153,6 +153,16 @@ class RovScenario(ScenarioBase):
         return self
 
 
+def _per_run(params, gain) -> np.ndarray:
+    """``gain(p)`` for each run's settings ``p``, computed once per distinct setting (a CDO design solves an LMI)."""
+    once = {}
+    for p in params:
+        key = p.model_dump_json()
+        if key not in once:
+            once[key] = gain(p)
+    return np.array([once[p.model_dump_json()] for p in params])
+
+
 class RovWorld:
     """Batched closed loop; ``controllers`` are (ControllerSpec, run indices) groups."""
 
@@ -195,11 +205,10 @@ class RovWorld:
         # variant's settings over them): injection gains (B, 1, 3), predictor gain K_w (B, 1)
         observers = [None] * B if observers is None else observers
         self.observe = np.array([OBSERVE[o.kind if o is not None else None] for o in observers])
-        resolved = [(sc.cdo, sc.eo) if o is None else o.resolve(sc) for o in observers]
-        cdo_gain, eo_gain = {}, {}
-        self.cdo_gain = np.array([cdo_gain.setdefault(c.model_dump_json(), c.injection()) for c, _ in resolved])[:, None]
-        self.k_w = np.array([[c.k_w] for c, _ in resolved])
-        self.eo_gain = np.array([eo_gain.setdefault(e.model_dump_json(), e.gain()) for _, e in resolved])[:, None]
+        cdos, eos = zip(*[(sc.cdo, sc.eo) if o is None else o.resolve(sc) for o in observers])
+        self.cdo_gain = _per_run(cdos, CdoParams.injection)[:, None]
+        self.k_w = np.array([[c.k_w] for c in cdos])
+        self.eo_gain = _per_run(eos, EoParams.gain)[:, None]
         self.feedback = [spec.feedback for spec, _ in controllers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
