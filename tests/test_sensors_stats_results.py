@@ -106,3 +106,32 @@ def test_apply_set_paths():
     assert doc["scenario"]["sensors"] == {"position_noise": {"kind": "none"}} and doc["seeds"] == 3
     with pytest.raises(ConfigError, match="not a valid index"):
         apply_set(doc, "variants.5.name=x")
+
+
+def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
+    """The manifest's revision is that of the checkout holding the package, '-dirty' when its sources or
+    configs differ from the commit (a copy of writer.py in a throwaway repository of the same layout)."""
+    import importlib.util
+    import shutil
+    import subprocess
+
+    from marinebench.results import writer
+
+    pkg = tmp_path / "marinebench" / "results"
+    pkg.mkdir(parents=True)
+    shutil.copy(writer.__file__, pkg / "writer.py")
+    (tmp_path / "configs").mkdir()
+    (tmp_path / "configs" / "a.yaml").write_text("seed: 1\n")
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    for cmd in (["init", "-q"], ["add", "-A"], ["commit", "-q", "-m", "c"]):
+        subprocess.run(git + cmd, check=True)
+    spec = importlib.util.spec_from_file_location("writer_copy", pkg / "writer.py")
+    copy = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(copy)
+    head = subprocess.run(git + ["rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    assert copy.git_revision() == head
+    (tmp_path / "configs" / "a.yaml").write_text("seed: 2\n")
+    assert copy.git_revision() == head + "-dirty"
+    (tmp_path / "notes.txt").write_text("not a source\n")  # files outside the sources do not count
+    (tmp_path / "configs" / "a.yaml").write_text("seed: 1\n")
+    assert copy.git_revision() == head

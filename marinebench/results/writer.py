@@ -71,14 +71,14 @@ def versions() -> dict[str, str]:
 
 def git_revision() -> str:
     """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` outside a git checkout."""
-    here = Path(__file__).resolve().parent
+    root = Path(__file__).resolve().parents[2]  # the checkout holding marinebench/ (an editable install)
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10, check=False)
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10, check=False)
         if sha.returncode:
             return "unknown"
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--", "marinebench", "configs", "scenarios", "pyproject.toml"],
-            cwd=here.parent, capture_output=True, text=True, timeout=10, check=False,
+            cwd=root, capture_output=True, text=True, timeout=10, check=False,
         )
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
