@@ -45,7 +45,9 @@ AnyScenario = Annotated[
 NAME = r"^[A-Za-z0-9_.+-]+$"
 DIAGNOSTICS = ("n_resets", "n_jumps", "log10_cond_mean", "cond_max")  # per-run observer diagnostics (DP observers)
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
-# What an error metric or a table covers when it names no signals: what the scenario kind's observers estimate.
+# What an error metric or a table covers when it names no signals: what the variants' observers estimate
+# (in this order), or, for closed-loop variants, what the scenario kind tracks.
+SIGNALS_OF = {"bejarano": SIGNALS, "liu_eso": SIGNALS, "npo": DP_SIGNALS, "resetting_fto": DP_SIGNALS}
 DEFAULT_SIGNALS = {"open_loop_asv": SIGNALS, "dp_supply": DP_SIGNALS, "rov_tracking": ("depth", "yaw")}
 
 
@@ -324,7 +326,9 @@ class Experiment(BaseModel):
         worlds = [self.scenario] if self.scenario is not None else list(self.scenarios.values())
         if not worlds:
             return
-        default = DEFAULT_SIGNALS[worlds[0].kind]
+        default = [s for kind in dict.fromkeys(v.observer.kind for v in self.variants if v.observer is not None)
+                   for s in SIGNALS_OF.get(kind, ())]
+        default = list(dict.fromkeys(default)) or DEFAULT_SIGNALS[worlds[0].kind]
         for m in self.metrics:
             if isinstance(m, ErrorMetric) and m.signals is None:
                 m.signals = list(default)
@@ -701,12 +705,15 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
                         raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
                     checked.add(cdo.model_dump_json())
 
-    signals = set(groups[0].observer.signals) if groups else set(ROV_SIGNALS)
+    signals = set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):
             bad = set(m.signals) - signals
             if bad:
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
+        if m.kind == "j_tot" and not set(DP_SIGNALS) <= signals:
+            raise ConfigError(file, f"metrics.{j}", "j_tot needs the DP state estimates (pose, bias, velocity), "
+                              "which no variant's observer produces (npo and resetting_fto do)")
     if exp.engine.check_step:
         try:
             check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)

@@ -103,6 +103,12 @@ class DpSensors(BaseModel):
     notch: bool = True
     notch_w0: float = Field(1.0, gt=0, description="notch centre frequency [rad/s]")
     notch_wc: float = Field(0.5, gt=0, description="notch width [rad/s]")
+    continuous_feed: Literal["foh", "hold"] = Field(
+        "foh",
+        description="what continuous-time observers (bejarano, liu_eso) see between measurement updates: 'foh' "
+        "interpolates linearly between the last two (a one-update delay, causal), 'hold' the staircase. The DP "
+        "observers are discrete and always take the held sample",
+    )
 
 
 class DpInitial(BaseModel):
@@ -143,14 +149,19 @@ class DpScenario(ScenarioBase):
 
 
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
+LUMPED_SIGNALS = ("sigma_u", "sigma_v", "sigma_r")
 
 
 class DpWorld:
     """Batched DP world; run ``b`` uses seed ``seed_of_run[b]`` and per-run sensor overrides."""
 
-    def __init__(self, sc: DpScenario, root_seed: int, seed_of_run: np.ndarray, per_run: dict[str, np.ndarray] | None = None):
+    def __init__(self, sc: DpScenario, root_seed: int, seed_of_run: np.ndarray, per_run: dict[str, np.ndarray] | None = None,
+                 lumped: bool = False):
         self.sc = sc
         self.plant = SupplyVessel(sc.vessel)
+        # truth of the lumped disturbance (Bejarano eq. (6)) only when an observer estimates it: it costs one
+        # more plant evaluation per step
+        self.design_Minv = SupplyVessel(sc.model).Minv if lumped else None
         self.scale = bis_scale(sc.vessel)
         B = len(seed_of_run)
         seeds = sorted({int(s) for s in seed_of_run})
@@ -192,6 +203,9 @@ class DpWorld:
         self.notch = Biquad(b, a, (B, 3)) if s.notch else None
         self.x0 = np.tile(np.array(sc.initial.eta + sc.initial.nu + sc.initial.bias, dtype=float), (B, 1))
         self.y = np.zeros((B, 3))
+        self.y_prev = self.y  # the measurement update before, for 'foh'
+        self.t_update = 0.0
+        self.update_dt = self.filter_every * sc.dt
         self.tau = np.zeros((B, 3))
         self._bias_rate = np.tile(np.array(sc.bias_rate, dtype=float), (B, 1))
         self._sample = 0
@@ -233,16 +247,22 @@ class DpWorld:
         if self.interpolate:
             error = self.gm + (k % self.every) / self.every * (self.gm_next - self.gm)
         raw = x[:, :3] + self.wave_motion(t) + error  # heading kept continuous (unwrapped) for the filter
-        if self.notch is not None:
-            if k == 0:
-                self.notch.reset_to(raw)
-            self.y = self.notch(raw)
-        else:
-            self.y = raw
+        if self.notch is not None and k == 0:
+            self.notch.reset_to(raw)
+        y = self.notch(raw) if self.notch is not None else raw
+        self.y_prev, self.y, self.t_update = (y if k == 0 else self.y), y, t
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Plant derivative, and the measurement as continuous-time observers see it (``continuous_feed``)."""
         tau_d = np.broadcast_to(self.events(t), self.tau.shape)
-        return self.plant.derivative(x, self.tau, tau_d, self._bias_rate), self.y, self.tau
+        y = self.y
+        if self.sc.sensors.continuous_feed == "foh":
+            y = self.y_prev + (t - self.t_update) / self.update_dt * (self.y - self.y_prev)
+        return self.plant.derivative(x, self.tau, tau_d, self._bias_rate), y, self.tau
+
+    def sampled(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The held measurement and the known input for discrete observers, at the start of a step."""
+        return self.y, self.tau
 
     def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         psi = x[:, 2]
@@ -251,5 +271,15 @@ class DpWorld:
         bx = x[:, 6] + c * fd[0] - s * fd[1]
         by = x[:, 7] + s * fd[0] + c * fd[1]
         bn = x[:, 8] + fd[2]
-        return {"x": x[:, 0], "y": x[:, 1], "psi": psi, "b_x": bx, "b_y": by, "b_n": bn,
-                "u": x[:, 3], "v": x[:, 4], "r": x[:, 5]}
+        out = {"x": x[:, 0], "y": x[:, 1], "psi": psi, "b_x": bx, "b_y": by, "b_n": bn,
+               "u": x[:, 3], "v": x[:, 4], "r": x[:, 5]}
+        if self.design_Minv is not None:
+            out.update(zip(LUMPED_SIGNALS, self.lumped_disturbance(t, x).T))
+        return out
+
+    def lumped_disturbance(self, t: float, x: np.ndarray) -> np.ndarray:
+        """sigma = nu_dot - M^-1 tau ``(B, 3)`` with the observers' design M (Bejarano eq. (6)): everything in
+        the body-frame acceleration that the known input does not explain (damping, bias, events, and the
+        plant-vs-design-model error)."""
+        nu_dot = self.derivative(t, x)[0][:, 3:6]
+        return nu_dot - self.tau @ self.design_Minv.T

@@ -4,7 +4,8 @@ The plant and every continuous observer group are integrated jointly by classic 
 step, so those observers see the measurement at the RK4 stage times (no zero-order-hold lag).
 *Discrete* observer groups (``observer.discrete = True``, e.g. the DP observers fed by sampled,
 held sensors) are advanced once per step by ``observer.step(state, y_k, tau_k, k)`` with the
-measurement at the start of the step. A world may have a ``begin_step(k, t, x)`` hook, called at the
+measurement at the start of the step (the world's ``sampled(t, x)`` if it has one, e.g. a held sample
+while continuous observers see it interpolated). A world may have a ``begin_step(k, t, x)`` hook, called at the
 start of every step, to sample and filter its sensors. Stiff observer gains are handled by a step
 check (see :func:`check_step`): RK4 is accurate when ``dt * |lambda|_max`` is well below its stability
 limit 2.78; the default limit is 0.5.
@@ -110,7 +111,7 @@ def simulate(
             k4 = rhs(t + dt, axpy(dt, k3, flow))
             new = [s + dt / 6 * (a + 2 * b + 2 * c + d) for s, a, b, c, d in zip(flow, k1, k2, k3, k4)]
             if discrete:
-                _, y, tau = world.derivative(t, state[0])
+                y, tau = world.sampled(t, state[0]) if hasattr(world, "sampled") else world.derivative(t, state[0])[1:]
                 new += [g.observer.step(xh, y[g.index], tau[g.index], k) for g, xh in zip(discrete, state[nc + 1 :])]
             state = new
             if progress is not None and (k + 1) % progress_every == 0:
