@@ -153,13 +153,13 @@ def sweep(
             bar.update(task, completed=bar.tasks[0].total)
     except MarinebenchError as exc:
         fail(str(exc))
-    metric = base.sweep.metric
+    shown = base.sweep.metrics or [base.sweep.metric]
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
-        (tmp / "table.md").write_text(sweep_table(metrics, metric, base.sweep))
+        (tmp / "table.md").write_text("\n".join(sweep_table(metrics, metric, base.sweep) for metric in shown))
         (tmp / "figures").mkdir()
-        sweep_figure(metrics, metric, base, tmp / "figures" / "sweep.png")
+        sweep_figure(metrics, shown, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
             experiment=exp.name, config_files={"experiment": str(config)}, overrides=set_ or [], seed=exp.seed, seeds=exp.seeds,
             runs=len(exp.variants) * exp.seeds,

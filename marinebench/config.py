@@ -273,6 +273,10 @@ class SweepSpec(BaseModel):
         default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
     )
     metric: str = Field("J_tot", description="metric plotted against each parameter")
+    metrics: list[str] | None = Field(
+        None, min_length=1, description="several metrics (overrides metric): a table section and a figure column each, "
+        "e.g. a transient and a steady-state error to show a trade-off",
+    )
     signals: list[str] | None = Field(None, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
 
@@ -431,8 +435,9 @@ class Experiment(BaseModel):
         if self.sweep is not None:
             if self.sweep.variant not in names:
                 raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
-            if self.sweep.metric not in kinds:
-                raise ValueError(f"sweep.metric '{self.sweep.metric}' is not among metrics {kinds}")
+            for metric in self.sweep.metrics or [self.sweep.metric]:
+                if metric not in kinds:
+                    raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")
         for f in self.figures:
             unknown = set(f.variants or []) - set(names)
             if unknown:

@@ -196,30 +196,34 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
     return "\n".join(lines) + "\n"
 
 
-def sweep_figure(metrics: pd.DataFrame, metric: str, exp: Experiment, path: Path) -> None:
-    """Fig. 3 layout: one panel per parameter, the KPI against the value, one curve per group (and signal,
-    when there are several): the mean over seeds, with the seeds' range shaded when there are several."""
-    curves = _per_seed_curves(metrics, metric, exp.sweep.signals)
-    params = list(dict.fromkeys(p for p, _, _ in curves))
-    n_groups, n_signals = len({g for _, g, _ in curves}), len({sig for _, _, sig in curves})
-    fig, axes = plt.subplots(max(1, len(params)), 1, figsize=(7, 2.6 * max(1, len(params))), squeeze=False)
-    for ax, p in zip(axes[:, 0], params):
-        for (q, g, sig), c in curves.items():
-            if q != p:
-                continue
-            x = c.index.to_numpy(dtype=float)
-            (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=g if n_signals == 1 else sig if n_groups == 1 else f"{g}, {sig}")
-            if c.shape[1] > 1:
-                ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
-        if exp.sweep.params[p].spacing == "log":
-            ax.set_xscale("log")
-        ax.set_xlabel(p)
-        ax.set_ylabel(metric)
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-    n_seeds = max((c.shape[1] for c in curves.values()), default=1)
+def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
+    """Fig. 3 layout: one panel per parameter (and a column per metric of ``shown``), the KPI against the value,
+    one curve per group (and signal, when there are several): the mean over seeds, with the seeds' range shaded
+    when there are several."""
+    per_metric = {metric: _per_seed_curves(metrics, metric, exp.sweep.signals) for metric in shown}
+    params = list(dict.fromkeys(p for curves in per_metric.values() for p, _, _ in curves))
+    rows, cols = max(1, len(params)), len(shown)
+    fig, axes = plt.subplots(rows, cols, figsize=(7 if cols == 1 else 5 * cols, 2.6 * rows), squeeze=False)
+    for col, (metric, curves) in enumerate(per_metric.items()):
+        n_groups, n_signals = len({g for _, g, _ in curves}), len({sig for _, _, sig in curves})
+        for ax, p in zip(axes[:, col], params):
+            for (q, g, sig), c in curves.items():
+                if q != p:
+                    continue
+                x = c.index.to_numpy(dtype=float)
+                label = g if n_signals == 1 else sig if n_groups == 1 else f"{g}, {sig}"
+                (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=label)
+                if c.shape[1] > 1:
+                    ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
+            if exp.sweep.params[p].spacing == "log":
+                ax.set_xscale("log")
+            ax.set_xlabel(p)
+            ax.set_ylabel(metric)
+            ax.legend(fontsize=8)
+            ax.grid(alpha=0.3)
+    n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    fig.suptitle(f"{exp.name}: {metric} sensitivity\n(one parameter at a time{seeds})", fontsize=10)
+    fig.suptitle(f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
