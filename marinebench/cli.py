@@ -43,6 +43,39 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     return exp, origins
 
 
+def _work(exp) -> float:
+    """Rough cost of an experiment (runs x steps), to start the longest first when running in parallel."""
+    worlds = [exp.scenario] if exp.scenario is not None else list(exp.scenarios.values())
+    return sum(len(exp.variants) * exp.seeds * w.horizon / w.dt for w in worlds)
+
+
+def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None]:
+    """Simulate one experiment and write its results atomically; returns the summary line and a warning (or
+    None). Errors are re-raised as one line naming the file."""
+    from marinebench.experiments.runner import run as run_experiment
+    from marinebench.results.outputs import write_run
+
+    try:
+        result = run_experiment(exp, progress=progress, on_start=on_start)
+    except StiffnessError as exc:
+        raise MarinebenchError(f"{path}: scenario.dt: {exc}") from None
+    except MarinebenchError as exc:
+        raise MarinebenchError(f"{path}: {exc}") from None
+    write_run(result, target, origins)
+    n_div = int((result.metrics["status"] != "ok").sum())
+    warning = f"warning: {exp.name}: {n_div} metric values from diverged runs excluded" if n_div else None
+    return f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s -> {target}", warning
+
+
+def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, str | None, str | None]:
+    """``_run_and_write`` in a worker process: (line, warning, error) as plain strings (exceptions with custom
+    constructors do not always survive pickling)."""
+    try:
+        return (*_run_and_write(path, exp, origins, target), None)
+    except MarinebenchError as exc:
+        return None, None, str(exc)
+
+
 @app.command()
 def run(
     configs: Annotated[list[Path], typer.Argument(help="experiment YAML files")],
@@ -51,41 +84,67 @@ def run(
     seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per variant")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
     profile: Annotated[str | None, typer.Option(help="apply the config's named profile (e.g. quick)")] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", min=0, help="experiments run at once in separate processes "
+                                      "(0: one per core); the numbers do not depend on it")] = 1,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
     """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md, figures/."""
-    from marinebench.experiments.runner import run as run_experiment
-    from marinebench.results.outputs import write_run
+    import os
 
     try:
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
     except MarinebenchError as exc:
         fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
+    jobs = min(jobs or os.cpu_count() or 1, len(loaded))
+    if jobs > 1:
+        return _run_parallel(loaded, base, jobs, quiet)
     for path, exp, origins in loaded:
-        target = base / path.stem
         try:
             with Progress(
                 TextColumn(f"{exp.name:<22}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
                 TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
             ) as bar:
                 task = bar.add_task(exp.name, total=1)
-                result = run_experiment(
-                    exp,
+                line, warning = _run_and_write(
+                    path, exp, origins, base / path.stem,
                     progress=lambda n, task=task: bar.advance(task, n),
                     on_start=lambda n, task=task: bar.update(task, total=n),
                 )
                 bar.update(task, completed=bar.tasks[0].total)
-        except StiffnessError as exc:
-            fail(f"{path}: scenario.dt: {exc}")
         except MarinebenchError as exc:
-            fail(f"{path}: {exc}")
-        write_run(result, target, origins)
-        n_div = int((result.metrics["status"] != "ok").sum())
-        if n_div:
-            err.print(f"warning: {exp.name}: {n_div} metric values from diverged runs excluded", markup=False)
+            fail(str(exc))
+        if warning:
+            err.print(warning, markup=False)
         if not quiet:
-            out.print(f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s -> {target}", markup=False)
+            out.print(line, markup=False)
+
+
+def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> None:
+    """``run --jobs N``: each experiment in a worker process (spawned), the longest first. Every experiment
+    that can finish is written; the first error is reported afterwards (exit 2)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    errors = []
+    order = sorted(loaded, key=lambda item: _work(item[1]), reverse=True)
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool, Progress(
+        TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(), console=err, disable=quiet, transient=False,
+    ) as bar:
+        task = bar.add_task("run", total=len(order))
+        futures = [pool.submit(_run_in_worker, path, exp, origins, base / path.stem) for path, exp, origins in order]
+        for future in as_completed(futures):
+            line, warning, error = future.result()
+            bar.advance(task)
+            if error:
+                errors.append(error)
+            if warning:
+                err.print(warning, markup=False)
+            if line and not quiet:
+                out.print(line, markup=False)
+    if errors:
+        fail(errors[0])
 
 
 @app.command()

@@ -158,3 +158,16 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
     bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
     assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
     assert not (tmp_path / "o").exists()
+
+
+def test_run_jobs_gives_the_same_files_as_one_process(tmp_path):
+    """--jobs 2 runs the experiments in spawned worker processes: the same metrics, tables and resolved
+    configs as a run in this process."""
+    configs = [str(ROOT / "configs" / "bejarano_table4.yaml"), str(ROOT / "configs" / "torben_fig3.yaml")]
+    sets = ["--seeds", "2", "--set", "scenario.horizon=20", "--quiet"]
+    one = CliRunner().invoke(app, ["run", *configs, *sets, "--out", str(tmp_path / "one")])
+    two = CliRunner().invoke(app, ["run", *configs, *sets, "--jobs", "2", "--out", str(tmp_path / "two")])
+    assert one.exit_code == 0 and two.exit_code == 0, (one.output, two.output)
+    for stem in ("bejarano_table4", "torben_fig3"):
+        for name in ("metrics.csv", "table.md", "config.resolved.yaml"):
+            assert (tmp_path / "one" / stem / name).read_text() == (tmp_path / "two" / stem / name).read_text()
