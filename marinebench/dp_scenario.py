@@ -2,7 +2,9 @@
 events, Gauss-Markov GNSS/heading errors sampled at Ts with hold, and a notch filter per channel.
 
 Plant state ``x = [eta(3), nu(3), b(3)]`` (b: slowly varying NED bias load, force units). The observer
-sees ``y = notch(sample_hold(eta_LF + eta_WF + v_GM))``. Truth for the KPI is the low-frequency state
+sees ``y = notch(sample_hold(eta_LF + eta_WF + v_GM))``: the discrete DP observers the held update of each
+step, continuous-time ones (Bejarano's, Liu's) by default the last two updates joined linearly
+(``sensors.continuous_feed``). Truth for the KPI is the low-frequency state
 with the *total* unmodelled load as bias: ``b_true = b + R(psi) tau_d`` (tau_d: body-frame events).
 
 Choices where the paper is silent (all scenario parameters): model (A) of the MSS supply vessel;
