@@ -19,6 +19,7 @@ def kinds() -> dict[str, dict[str, str]]:
     from marinebench.config import ObserverTuning
     from marinebench.dp_scenario import DpScenario, Event
     from marinebench.environment.signals import Signal
+    from marinebench.experiments.runner import scenario_kinds_for
     from marinebench.models.cybership2 import CyberShip2Params
     from marinebench.models.rov import LeonardLikeParams
     from marinebench.models.supply import SupplyParams
@@ -29,7 +30,7 @@ def kinds() -> dict[str, dict[str, str]]:
     return {
         "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario), **_kinds_of(RovScenario)},
         "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyParams), **_kinds_of(LeonardLikeParams)},
-        "observers": _kinds_of(ObserverTuning),
+        "observers": {kind: f"{doc} [{', '.join(scenario_kinds_for(kind))}]" for kind, doc in _kinds_of(ObserverTuning).items()},
         "controllers": {"rise": "RISE (Fischer et al. 2014), rov_tracking scenarios",
                         "srise": "S+RISE (Tijjani eqs. 14-17); feedback: cdo makes it CDO-S+RISE"},
         "signals": _kinds_of(Signal),

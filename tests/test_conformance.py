@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from marinebench.config import load_experiment, load_scenario, preflight
-from marinebench.experiments.runner import OBSERVER_KINDS, run
+from marinebench.experiments.runner import run, scenario_kinds_for
 from marinebench.registry import kinds
 
 from .conftest import ROOT
@@ -53,8 +53,7 @@ IDS = [f"{kind}-{load_scenario(scenario['from']).kind if 'from' in scenario else
 
 
 def test_every_registered_observer_kind_has_a_conformance_case_on_each_scenario_kind_it_applies_to():
-    applies = {(kind, scenario) for scenario, usable in OBSERVER_KINDS.items() for kind in usable}
-    applies |= {("cdo", "rov_tracking"), ("eo", "rov_tracking")}  # the ROV world's observed-through views
+    applies = {(kind, scenario) for kind in kinds()["observers"] for scenario in scenario_kinds_for(kind)}
     assert {kind for kind, *_ in CASES} == set(kinds()["observers"])
     assert {tuple(i.split("-")) for i in IDS} == applies
 

@@ -38,11 +38,18 @@ OBSERVER_KINDS = {
     "rov_tracking": (),
 }
 LUMPED_KINDS = ("bejarano", "liu_eso")  # observers of the lumped disturbance sigma (Bejarano eq. (6))
+# Observers a closed-loop world runs itself; a variant's `observer` picks the one whose estimates it reports.
+WORLD_OBSERVERS = {"rov_tracking": ("cdo", "eo")}
 
 
 def observer_kinds_for(scenario) -> tuple[str, ...]:
     """Observer kinds that apply to a scenario's kind."""
     return OBSERVER_KINDS[scenario.kind]
+
+
+def scenario_kinds_for(observer_kind: str) -> list[str]:
+    """Scenario kinds an observer kind applies to (``marinebench list``, the conformance suite)."""
+    return [s for s in OBSERVER_KINDS if observer_kind in OBSERVER_KINDS[s] + WORLD_OBSERVERS.get(s, ())]
 
 
 def plant_of(scenario):
