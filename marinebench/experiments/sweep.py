@@ -242,8 +242,8 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
                 client=None) -> tuple[pd.DataFrame, float, int]:
     """Run the sweep's runs in chunks, saving each chunk's metrics in ``.<target>.partial/``.
 
-    An interrupted sweep resumes: chunks already on disk for the same experiment (same resolved config,
-    compared by hash) are loaded, not rerun. Runs are independent of the batch they are in (per-run
+    An interrupted sweep resumes: chunks already on disk for the same experiment and the same code (a hash of
+    the resolved config and of marinebench's source files) are loaded, not rerun. Runs are independent of the batch they are in (per-run
     seeding), so chunking does not change any number. With a Dask ``client`` (``distributed.Client``) the
     unfinished chunks are submitted to its workers at once and each is saved here as it arrives, so the
     numbers are the same as in one process and an interrupted distributed sweep resumes the same way.
@@ -253,15 +253,16 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     import shutil
     import uuid
 
+    from marinebench.experiments.cluster import source_digest
     from marinebench.results.writer import atomic_write_text
 
-    key = hashlib.sha256(exp.model_dump_json().encode()).hexdigest()
+    key = hashlib.sha256((exp.model_dump_json() + source_digest()).encode()).hexdigest()
     partial = target.parent / f".{target.name}.partial"
     stale = partial.exists() and (
         not (partial / "key").exists() or (partial / "key").read_text().strip() != key
     )
     if stale:
-        shutil.rmtree(partial)  # a different sweep was interrupted here: start afresh
+        shutil.rmtree(partial)  # a different sweep, or other code, was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
     per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
