@@ -212,7 +212,7 @@ def sweep(
             bar.update(task, completed=bar.tasks[0].total)
     except MarinebenchError as exc:
         fail(str(exc))
-    shown = base.sweep.metrics or [base.sweep.metric]
+    shown = base.sweep.shown
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))

@@ -19,11 +19,11 @@ from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, Validatio
 from marinebench.controllers.spec import ControllerSpec
 from marinebench.dp_scenario import DpScenario
 from marinebench.errors import ConfigError
-from marinebench.observers.bejarano import BejaranoTuning
+from marinebench.observers.bejarano import BejaranoObserver, BejaranoTuning
 from marinebench.observers.cdo import RovObserverSpec
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
-from marinebench.observers.dp import NpoTuning, ResettingTuning
-from marinebench.observers.liu_eso import LiuEsoTuning
+from marinebench.observers.dp import DpObserver, NpoTuning, ResettingTuning
+from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 from marinebench.rov_scenario import RovScenario
 from marinebench.scenario import Scenario
 
@@ -47,7 +47,8 @@ DIAGNOSTICS = ("n_resets", "n_jumps", "log10_cond_mean", "cond_max")  # per-run 
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
 # What an error metric or a table covers when it names no signals: what the variants' observers estimate
 # (in this order), or, for closed-loop variants, what the scenario kind tracks.
-SIGNALS_OF = {"bejarano": SIGNALS, "liu_eso": SIGNALS, "npo": DP_SIGNALS, "resetting_fto": DP_SIGNALS}
+SIGNALS_OF = {"bejarano": BejaranoObserver.signals, "liu_eso": LiuEsoObserver.signals,
+              "npo": DpObserver.signals, "resetting_fto": DpObserver.signals}
 DEFAULT_SIGNALS = {"open_loop_asv": SIGNALS, "dp_supply": DP_SIGNALS, "rov_tracking": ("depth", "yaw")}
 
 
@@ -280,6 +281,11 @@ class SweepSpec(BaseModel):
     signals: list[str] | None = Field(None, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
 
+    @property
+    def shown(self) -> list[str]:
+        """The metrics tabulated and plotted: ``metrics``, or ``metric`` alone."""
+        return self.metrics or [self.metric]
+
 
 class EngineOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -435,7 +441,7 @@ class Experiment(BaseModel):
         if self.sweep is not None:
             if self.sweep.variant not in names:
                 raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
-            for metric in self.sweep.metrics or [self.sweep.metric]:
+            for metric in self.sweep.shown:
                 if metric not in kinds:
                     raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")
         for f in self.figures:

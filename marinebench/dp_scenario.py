@@ -256,11 +256,14 @@ class DpWorld:
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Plant derivative, and the measurement as continuous-time observers see it (``continuous_feed``)."""
-        tau_d = np.broadcast_to(self.events(t), self.tau.shape)
         y = self.y
         if self.sc.sensors.continuous_feed == "foh":
             y = self.y_prev + (t - self.t_update) / self.update_dt * (self.y - self.y_prev)
-        return self.plant.derivative(x, self.tau, tau_d, self._bias_rate), y, self.tau
+        return self._plant_rate(t, x), y, self.tau
+
+    def _plant_rate(self, t: float, x: np.ndarray) -> np.ndarray:
+        tau_d = np.broadcast_to(self.events(t), self.tau.shape)
+        return self.plant.derivative(x, self.tau, tau_d, self._bias_rate)
 
     def sampled(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The held measurement and the known input for discrete observers, at the start of a step."""
@@ -283,5 +286,5 @@ class DpWorld:
         """sigma = nu_dot - M^-1 tau ``(B, 3)`` with the observers' design M (Bejarano eq. (6)): everything in
         the body-frame acceleration that the known input does not explain (damping, bias, events, and the
         plant-vs-design-model error)."""
-        nu_dot = self.derivative(t, x)[0][:, 3:6]
+        nu_dot = self._plant_rate(t, x)[:, 3:6]
         return nu_dot - self.tau @ self.design_Minv.T

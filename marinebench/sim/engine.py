@@ -78,6 +78,7 @@ def simulate(
     nc = len(continuous)
     state = [world.x0.copy()] + [g.observer.init() for g in groups]
     begin_step = getattr(world, "begin_step", None)
+    sampled = getattr(world, "sampled", None) or (lambda t, x: world.derivative(t, x)[1:])  # discrete observers' input
     world_estimates = getattr(world, "estimates", None)  # e.g. a reference, so est - truth is a tracking error
 
     def rhs(t: float, s: list[np.ndarray]) -> list[np.ndarray]:
@@ -111,7 +112,7 @@ def simulate(
             k4 = rhs(t + dt, axpy(dt, k3, flow))
             new = [s + dt / 6 * (a + 2 * b + 2 * c + d) for s, a, b, c, d in zip(flow, k1, k2, k3, k4)]
             if discrete:
-                y, tau = world.sampled(t, state[0]) if hasattr(world, "sampled") else world.derivative(t, state[0])[1:]
+                y, tau = sampled(t, state[0])
                 new += [g.observer.step(xh, y[g.index], tau[g.index], k) for g, xh in zip(discrete, state[nc + 1 :])]
             state = new
             if progress is not None and (k + 1) % progress_every == 0:
