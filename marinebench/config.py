@@ -675,7 +675,7 @@ def preflight(exp: Experiment, file: Path) -> None:
 
 def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     from marinebench.errors import DesignError, StiffnessError
-    from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of
+    from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of, wants_lumped
     from marinebench.sim.engine import ObserverGroup, check_step
 
     plant = plant_of(exp.scenario)
@@ -695,7 +695,7 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
                               f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
         try:
-            groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant), [0]))
+            groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0]))
         except DesignError as exc:
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
     from marinebench.rov_scenario import ROV_SIGNALS

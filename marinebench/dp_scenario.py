@@ -27,6 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.environment.waves import component_amplitudes, dnv_gamma
 from marinebench.models.supply import SupplyParams, SupplyVessel, SupplyVesselParams, bis_scale
+from marinebench.observers.dp import LUMPED_SIGNALS
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.sensors.notch import Biquad, tustin_notch
@@ -149,9 +150,6 @@ class DpScenario(ScenarioBase):
     # per-run world parameters a variant may override (``variants[].world``)
     PER_RUN: ClassVar[tuple[str, ...]] = ("gnss_sigma", "heading_sigma_deg")
 
-
-SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
-LUMPED_SIGNALS = ("sigma_u", "sigma_v", "sigma_r")
 
 
 class DpWorld:

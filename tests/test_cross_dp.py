@@ -8,7 +8,8 @@ import yaml
 from marinebench.config import load_experiment, preflight
 from marinebench.dp_scenario import DpScenario, DpWorld
 from marinebench.errors import ConfigError
-from marinebench.experiments.runner import run
+from marinebench.experiments.runner import make_observer, plant_of, run, wants_lumped
+from marinebench.observers.dp import NpoTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 
 from .conftest import ROOT
@@ -89,13 +90,44 @@ def test_each_observer_kind_reports_the_signals_it_estimates(tmp_path):
     m = run(exp, traces=False).metrics
     assert (m["status"] == "ok").all()
     rows = m.groupby("variant")[["signal", "metric"]].apply(lambda g: set(map(tuple, g.to_numpy())))
-    for dp in ("npo", "resetting"):
-        assert {("v", "rmse"), ("z", "J_tot")} <= rows[dp] and ("sigma_v", "rmse") not in rows[dp]
+    for dp in ("npo", "resetting"):  # sigma asked for: the DP observers report the sigma their model implies
+        assert {("v", "rmse"), ("sigma_v", "rmse"), ("z", "J_tot")} <= rows[dp]
     for lumped in ("liu_eps0.1", "proposed_d2.2"):
         assert {("v", "rmse"), ("sigma_v", "rmse")} <= rows[lumped] and ("z", "J_tot") not in rows[lumped]
     # without waves the fast lumped-disturbance observers follow the sway impulse far better than the NPO
     v = m[(m["signal"] == "v") & (m["metric"] == "rmse")].set_index("variant")["value"]
     assert v["liu_eps0.1"] < 0.2 * v["npo"] and v["proposed_d2.2"] < 0.2 * v["npo"]
+
+
+def test_dp_observers_report_sigma_only_when_asked(tmp_path):
+    """Torben's experiments ask for no sigma: no sigma rows, no sigma truth (no extra plant evaluation)."""
+    exp, _ = cross_experiment(tmp_path, variants=[{"name": "npo", "observer": {"kind": "npo"}}],
+                              metrics=[{"kind": "rmse", "t_start": 0.0, "signals": ["v"]}], table=None)
+    assert not wants_lumped(exp)
+    m = run(exp, traces=False).metrics
+    assert set(m[m["metric"] == "rmse"]["signal"]) == {"v"}
+    asked = exp.model_copy(update={"metrics": [exp.metrics[0].model_copy(update={"signals": ["v", "sigma_v"]})]})
+    assert wants_lumped(asked)
+    m = run(asked, traces=False).metrics
+    assert set(m[m["metric"] == "rmse"]["signal"]) == {"v", "sigma_v"}
+
+
+def test_the_dp_observers_sigma_is_their_model_solved_for_the_acceleration():
+    """sigma_hat = M^-1 (R(psi)^T b - D nu) of model (41): at the true state of a plant that *is* the design
+    model it equals the plant's body acceleration (tau = 0), at any heading and with a body-frame event load."""
+    sc = DpScenario(name="m", horizon=10, waves=None,
+                    events=[{"kind": "impulse", "t_start": 0, "duration": 50, "force": [2e5, 5e6, 3e7]}])
+    world = DpWorld(sc, 0, np.zeros(2, dtype=int), lumped=True)
+    x = np.array([[1.0, 2.0, 0.3, 0.5, 2.0, 0.01, 1e4, -2e4, 1e5],
+                  [-4.0, 1.0, -2.5, -1.0, 0.3, -0.02, -3e4, 5e3, -2e5]])
+    truth = world.truth(5.0, x)
+    obs = make_observer("npo", [NpoTuning()] * 2, sc, plant_of(sc), lumped=True)
+    state = obs.init().reshape(2, 2, 9, 10)
+    state[:, 0, :, 9] = np.stack([truth[s] for s in ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")], axis=1)
+    out = obs.outputs(state.reshape(2, -1))
+    for s in ("sigma_u", "sigma_v", "sigma_r"):
+        np.testing.assert_allclose(out[s], truth[s], rtol=1e-10)
+    assert "sigma_u" not in make_observer("npo", [NpoTuning()], sc, plant_of(sc)).outputs(obs.init()[:1])
 
 
 def test_j_tot_without_an_observer_of_the_dp_state_is_a_config_error(tmp_path):

@@ -21,8 +21,8 @@ from marinebench.models.cybership2 import CyberShip2
 from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
+from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
-from marinebench.observers.dp import DpObserver
 from marinebench.observers.liu_eso import LiuEsoObserver
 from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
@@ -58,14 +58,27 @@ def plant_of(scenario):
     return {"open_loop_asv": CyberShip2, "dp_supply": SupplyVessel, "rov_tracking": LeonardLike}[scenario.kind](params)
 
 
-def make_observer(kind: str, tunings: list, scenario, plant):
-    """Build one batched observer of ``kind`` with one tuning per run."""
+def wants_lumped(exp: Experiment) -> bool:
+    """Whether a DP experiment needs the lumped-disturbance truth sigma: an observer of sigma runs, or a metric,
+    the table or a figure asks for a sigma signal (then the DP observers report the sigma their model implies).
+    Torben's experiments ask for neither and do not pay for the extra plant evaluation per step."""
+    if exp.scenario.kind != "dp_supply":
+        return False
+    asked = {s for m in exp.metrics for s in (getattr(m, "signals", None) or ())}
+    asked |= {s for f in exp.figures for s in (getattr(f, "signals", None) or ())}
+    asked |= set(exp.table.signals or ()) if exp.table is not None else set()
+    return bool(asked & set(LUMPED_SIGNALS)) or any(v.observer.kind in LUMPED_KINDS for v in exp.variants)
+
+
+def make_observer(kind: str, tunings: list, scenario, plant, lumped: bool = False):
+    """Build one batched observer of ``kind`` with one tuning per run (``lumped``: DP observers also report
+    the lumped disturbance their model implies)."""
     if kind == "bejarano":
         return BejaranoObserver(tunings, plant.Minv)
     if kind == "liu_eso":
         return LiuEsoObserver(tunings, plant.Minv)
     if kind in ("npo", "resetting_fto"):
-        return DpObserver(tunings, plant, scenario.dt, bis_scale(plant.params))
+        return DpObserver(tunings, plant, scenario.dt, bis_scale(plant.params), lumped)
     raise KeyError(kind)
 
 
@@ -84,8 +97,7 @@ def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
         if any(key in v.world for v in exp.variants):
             default = getattr(sc.sensors, key)
             per_run[key] = np.array([exp.variants[v].world.get(key, default) for v in run_variant], dtype=float)
-    lumped = any(exp.variants[v].observer.kind in LUMPED_KINDS for v in set(run_variant.tolist()))
-    return DpWorld(sc, exp.seed, run_seed, per_run, lumped)
+    return DpWorld(sc, exp.seed, run_seed, per_run, wants_lumped(exp))
 
 
 @dataclass
@@ -110,7 +122,7 @@ def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[Observ
                         if exp.variants[v].observer is not None and exp.variants[v].observer.kind == kind], dtype=int)
         if idx.size:
             tunings = [exp.variants[run_variant[b]].observer for b in idx]
-            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant), idx))
+            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant, wants_lumped(exp)), idx))
     return groups
 
 

@@ -29,6 +29,7 @@ from marinebench.observers.fto import fto_jump, rk4_maps
 
 Vec3 = tuple[float, float, float]
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
+LUMPED_SIGNALS = ("sigma_u", "sigma_v", "sigma_r")  # Bejarano eq. (6): nu_dot - M^-1 tau, body frame
 
 
 class NpoTuning(BaseModel):
@@ -121,7 +122,9 @@ class DpObserver:
     """Batched NPO / resetting observer.
 
     State ``(B, 180)`` = ``[Phi_i | z_i]`` for i = 1, 2, each 9 x 10 (z travels as a 10th column of Phi,
-    so one batched matmul per step advances both). The one-step maps ``P_i(psi)``, ``P_i`` acting on
+    so one batched matmul per step advances both). With ``lumped`` the observer also reports the lumped
+    disturbance its model implies, ``sigma_hat = M^-1 (R(psi_hat)^T b_hat - D nu_hat)`` (model (41) solved for
+    nu_dot - M^-1 tau; Bejarano eq. (6)), to compare with the estimators of sigma on the same world. The one-step maps ``P_i(psi)``, ``P_i`` acting on
     ``[Phi | z]``, and the input maps ``G_y(psi) = H_i L_i(psi)``, ``G_u(psi) = H_i B`` are exact trig
     polynomials of order 4 in psi; their coefficients are fitted once per gain set from 16 headings
     (residual ~1e-13), so each step costs one GEMM instead of forming RK4 maps per run.
@@ -131,8 +134,9 @@ class DpObserver:
     signals = SIGNALS
     discrete = True
 
-    def __init__(self, tunings: list[NpoTuning], plant, dt: float, scale: np.ndarray) -> None:
+    def __init__(self, tunings: list[NpoTuning], plant, dt: float, scale: np.ndarray, lumped: bool = False) -> None:
         B = len(tunings)
+        self.signals = SIGNALS + LUMPED_SIGNALS if lumped else SIGNALS
         self.dt, self.scale = dt, scale
         self.M, self.Minv, self.D = plant.M, plant.Minv, plant.D
         keys = [t.design_key(plant.params.L) for t in tunings]
@@ -242,7 +246,13 @@ class DpObserver:
 
     def outputs(self, state: np.ndarray) -> dict[str, np.ndarray]:
         z1 = state.reshape(state.shape[0], 2, 9, 10)[:, 0, :, 9]
-        return {name: z1[:, i] for i, name in enumerate(SIGNALS)}
+        out = {name: z1[:, i] for i, name in enumerate(SIGNALS)}
+        if len(self.signals) > len(SIGNALS):
+            c, s = np.cos(z1[:, 2]), np.sin(z1[:, 2])
+            b = z1[:, 3:6]
+            rtb = np.stack([c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1], b[:, 2]], axis=1)  # R(psi)^T b
+            out.update(zip(LUMPED_SIGNALS, ((rtb - z1[:, 6:9] @ self.D.T) @ self.Minv.T).T))
+        return out
 
     def diagnostics(self) -> dict[str, np.ndarray]:
         return {
