@@ -205,7 +205,10 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
     rows, cols = max(1, len(params)), len(shown)
     fig, axes = plt.subplots(rows, cols, figsize=(7 if cols == 1 else 5 * cols, 2.6 * rows), squeeze=False)
     for col, (metric, curves) in enumerate(per_metric.items()):
-        n_groups, n_signals = len({g for _, g, _ in curves}), len({sig for _, _, sig in curves})
+        n_groups, signals = len({g for _, g, _ in curves}), sorted({sig for _, _, sig in curves})
+        n_signals = len(signals)
+        # one signal: name it on the axis (the table's "e_v"); the J_tot state "z" needs no name
+        ylabel = metric if n_signals > 1 or signals == ["z"] else f"{metric} (e_{signals[0]})"
         for ax, p in zip(axes[:, col], params):
             for (q, g, sig), c in curves.items():
                 if q != p:
@@ -218,8 +221,9 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
             if exp.sweep.params[p].spacing == "log":
                 ax.set_xscale("log")
             ax.set_xlabel(p)
-            ax.set_ylabel(metric)
-            ax.legend(fontsize=8)
+            ax.set_ylabel(ylabel)
+            if n_groups * n_signals > 1:  # a lone curve needs no legend (its group is the default)
+                ax.legend(fontsize=8)
             ax.grid(alpha=0.3)
     n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
