@@ -6,12 +6,13 @@ import typing
 
 
 def _kinds_of(union) -> dict[str, str]:
+    """kind -> first docstring line; a class serving several kinds may describe each in ``KIND_DOCS``."""
     members = typing.get_args(typing.get_args(union)[0]) if typing.get_origin(union) is typing.Annotated else (union,)
     out = {}
     for m in members:
         doc = (m.__doc__ or "").strip().splitlines()[0]
         for kind in typing.get_args(m.model_fields["kind"].annotation):  # Literal["a"] or Literal["a", "b"]
-            out[kind] = doc
+            out[kind] = getattr(m, "KIND_DOCS", {}).get(kind, doc)
     return out
 
 

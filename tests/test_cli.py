@@ -124,6 +124,10 @@ def test_list_shows_registered_kinds():
     for kind in ("cybership2", "bejarano", "liu_eso", "random_sinusoid", "bandlimited_uniform", "std",
                  "dp_supply", "supply_dp_linear", "npo", "resetting_fto", "impulse", "j_tot"):
         assert kind in res.output
+    from marinebench.registry import kinds
+
+    observers = kinds()["observers"]
+    assert len(set(observers.values())) == len(observers)  # each kind its own line, even when classes are shared
 
 
 def test_experiment_from_another_experiment(tiny_config, tmp_path):

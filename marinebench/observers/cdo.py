@@ -10,7 +10,7 @@ Gains: ``marinebench.design.cdo`` (LMI (40), (39), the per-sample check).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -75,6 +75,10 @@ class RovObserverSpec(BaseModel):
     The variant's ``depth`` and ``yaw`` (and ``*_rate``) signals become that observer's estimates (error = estimate - truth), and ``depth_meas``/``yaw_meas`` its estimate at each
     sample instant against the sample (the only observation error a pool experiment can measure)."""
 
+    KIND_DOCS: ClassVar[dict[str, str]] = {
+        "cdo": "Tijjani's continuous-discrete observer (eq. 38, inter-sample predictor, K* from LMI (40)), as run in a closed loop.",
+        "eo": "Extended high-gain observer of Chowdhury et al. 2022 (the Fig. 2 baseline), as run in a closed loop.",
+    }
     model_config = ConfigDict(extra="forbid")
     kind: Literal["cdo", "eo"]
     cdo: dict[str, Any] = Field(
