@@ -85,7 +85,13 @@ class Waves(BaseModel):
 class DpSensors(BaseModel):
     model_config = ConfigDict(extra="forbid")
     gnss_sigma: float = Field(0.1, ge=0, description="GM std [m]: 0.1 differential, 1.5 dual-band (see sigma_is)")
-    heading_sigma_deg: float = Field(0.3, ge=0, description="GM std of the heading [deg] (see sigma_is)")
+    heading_sigma_deg: float = Field(0.3, ge=0, description="std of the heading error [deg] (Torben Table I: 0.3)")
+    heading_noise: Literal["gauss_markov", "white"] = Field(
+        "gauss_markov",
+        description="the heading error: 'gauss_markov' shares the GNSS model of eq. (48) (1/c, ts, sigma_is); "
+        "'white' is a fresh N(0, heading_sigma^2) at every measurement update (a gyrocompass's own noise; the "
+        "paper gives the 0.3 deg without a model)",
+    )
     sigma_is: Literal["stationary", "driving"] = Field(
         "stationary",
         description="'stationary': sigma is the error's stationary std (a sensor's stated accuracy; driving std "
@@ -184,6 +190,13 @@ class DpWorld:
             first = np.array([g.standard_normal(3) for g in stream_rngs(root_seed, seeds, "gauss_markov_initial")])
             self.gm = first[where] * np.stack([gnss, gnss, heading], axis=1)
         self.c = 1.0 / s.gm_time_constant
+        self.white = None
+        if s.heading_noise == "white":  # white heading error: standard normals per seed and step, scaled per run
+            n_steps = round(sc.horizon / sc.dt) + 1
+            draws = np.array([g.standard_normal(n_steps) for g in stream_rngs(root_seed, seeds, "heading_white")])
+            self.white = (draws, where, heading)
+            self.sigma[:, 2] = 0.0  # no Gauss-Markov heading error
+            self.gm[:, 2] = 0.0
         # waves: frequencies on an equally spaced grid, phases per seed
         self.wave = None
         if sc.waves is not None and sc.waves.hs > 0:
@@ -247,6 +260,9 @@ class DpWorld:
         if self.interpolate:
             error = self.gm + (k % self.every) / self.every * (self.gm_next - self.gm)
         raw = x[:, :3] + self.wave_motion(t) + error  # heading kept continuous (unwrapped) for the filter
+        if self.white is not None:
+            draws, where, std = self.white
+            raw[:, 2] += std * draws[where, k]
         if self.notch is not None and k == 0:
             self.notch.reset_to(raw)
         y = self.notch(raw) if self.notch is not None else raw

@@ -53,6 +53,25 @@ def test_gauss_markov_between_samples_hold_or_linear():
     np.testing.assert_allclose(lin[10], 0.5 * (hold[0] + hold[20]))  # halfway between samples
 
 
+def test_white_heading_noise_option():
+    """heading_noise 'white': a fresh N(0, 0.3 deg) every step, uncorrelated; North/East keep eq. (48)."""
+    sc = DpScenario(name="w", horizon=100, waves=None,
+                    sensors={"heading_sigma_deg": 0.3, "heading_noise": "white", "notch": False})
+    w = DpWorld(sc, 0, np.arange(3))
+    x = np.zeros((3, 9))
+    ys = []
+    for k in range(2001):
+        w.begin_step(k, k * sc.dt, x)
+        ys.append(w.y.copy())
+    psi = np.array(ys)[:, :, 2]
+    assert abs(psi.std() / np.deg2rad(0.3) - 1) < 0.03
+    assert abs(np.corrcoef(psi[1:].ravel(), psi[:-1].ravel())[0, 1]) < 0.05
+    gm = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"heading_noise": "gauss_markov"})}),
+                 0, np.arange(3))
+    white = DpWorld(sc, 0, np.arange(3))
+    assert (white.gm[:, 2] == 0).all() and (gm.gm[:, 2] != 0).all() and np.array_equal(white.gm[:, :2], gm.gm[:, :2])
+
+
 def test_norm_integral_matches_numpy():
     rec = NormIntegral(["a", "psi"], np.array([2.0, 1.0]), {"psi"}, 1.0, 3.0, 0.5)
     rng = np.random.default_rng(0)
