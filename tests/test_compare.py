@@ -152,3 +152,24 @@ def test_real_run_compared_with_itself_rerun(tiny_config, tmp_path):
     res = runner.invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "c")])
     assert res.exit_code == 1 and "proposed_d1.2" in res.output.splitlines()[4]
     shutil.rmtree(tmp_path / "c")
+
+
+def test_a_reference_older_than_an_option_still_pairs(tmp_path):
+    """A reference written before an option existed (absent there, at its default now) pairs with a new run;
+    a different value of the same option does not."""
+    from .conftest import ROOT
+
+    ref = ROOT / "reference" / "quick" / "torben_fig1"
+    for name in ("old", "new", "changed"):
+        shutil.copytree(ref, tmp_path / name / "torben_fig1")
+    old = tmp_path / "old" / "torben_fig1" / "config.resolved.yaml"
+    doc = yaml.safe_load(old.read_text())
+    del doc["scenario"]["sensors"]["continuous_feed"]  # an option added after this reference was written
+    old.write_text(yaml.safe_dump(doc, sort_keys=False))
+    res = runner.invoke(app, ["compare", str(tmp_path / "old"), str(tmp_path / "new")])
+    assert res.exit_code == 0 and "0 worse, 0 better" in res.output, res.output
+    changed = tmp_path / "changed" / "torben_fig1" / "config.resolved.yaml"
+    doc["scenario"]["sensors"]["continuous_feed"] = "hold"
+    changed.write_text(yaml.safe_dump(doc, sort_keys=False))
+    res = runner.invoke(app, ["compare", str(tmp_path / "old"), str(tmp_path / "changed")])
+    assert res.exit_code == 2 and "scenario.sensors.continuous_feed" in res.output, res.output

@@ -20,7 +20,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import yaml
+from pydantic import TypeAdapter, ValidationError
 
+from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
 
 HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
@@ -75,8 +77,22 @@ def _world(d: Path) -> dict:
     if not path.exists():
         return {}
     doc = yaml.safe_load(path.read_text())
-    return {"scenario": doc.get("scenario"), "scenarios": doc.get("scenarios"), "seed": doc.get("seed"),
-            "metrics": doc.get("metrics")}
+    scenarios = doc.get("scenarios")
+    return {"scenario": _normalised(AnyScenario, doc.get("scenario")),
+            "scenarios": {k: _normalised(AnyScenario, v) for k, v in scenarios.items()} if scenarios else scenarios,
+            "seed": doc.get("seed"), "metrics": [_normalised(Metric, m) for m in doc.get("metrics") or []]}
+
+
+def _normalised(kind, value):
+    """A resolved config's section re-validated by this marinebench, so that an option added since the
+    reference was written (absent there, at its default here) does not count as a difference; a section this
+    version cannot read (a removed option) stays as written and so differs."""
+    if value is None:
+        return None
+    try:
+        return TypeAdapter(kind).validate_python(value).model_dump(mode="json")
+    except ValidationError:
+        return value
 
 
 def _diff_keys(a, b, prefix: str = "") -> list[str]:
