@@ -88,9 +88,9 @@ class DpSensors(BaseModel):
     heading_sigma_deg: float = Field(0.3, ge=0, description="std of the heading error [deg] (Torben Table I: 0.3)")
     heading_noise: Literal["gauss_markov", "white"] = Field(
         "gauss_markov",
-        description="the heading error: 'gauss_markov' shares the GNSS model of eq. (48) (1/c, ts, sigma_is); "
-        "'white' is a fresh N(0, heading_sigma^2) at every measurement update (a gyrocompass's own noise; the "
-        "paper gives the 0.3 deg without a model)",
+        description="the heading error: 'gauss_markov' shares the GNSS model of eq. (48) (1/c, ts, sigma_is), as "
+        "the paper states (Sec. IV-B); 'white' is a fresh N(0, heading_sigma^2) at every measurement update (how a "
+        "gyrocompass's own noise is often simulated; an alternative, not the paper's)",
     )
     sigma_is: Literal["stationary", "driving"] = Field(
         "stationary",
