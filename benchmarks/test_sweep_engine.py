@@ -18,10 +18,10 @@ from pathlib import Path
 
 import pytest
 
-from marinebench.config import load_experiment
 from marinebench.experiments.reference import reference_run
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
+from marinebench.loading import load_experiment
 
 ROOT = Path(__file__).resolve().parents[1]
 CFG = ROOT / "configs" / "torben_fig3.yaml"

@@ -31,7 +31,7 @@ def fail(message: str, code: int = 2) -> None:
 
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
-    from marinebench.config import load_experiment, preflight
+    from marinebench.loading import load_experiment, preflight
 
     sets = list(sets)
     if seed is not None:
@@ -193,7 +193,7 @@ def sweep(
     try:
         base, _ = _load(config, set_ or [], seed, seeds)
         exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
-        from marinebench.config import preflight
+        from marinebench.loading import preflight
 
         preflight(exp, config)
     except MarinebenchError as exc:
@@ -352,7 +352,7 @@ def report(
 @app.command()
 def validate(files: Annotated[list[Path], typer.Argument(help="experiment or scenario YAML files")]) -> None:
     """Check configs (and solve their observer designs) without running them."""
-    from marinebench.config import is_scenario_file, load_scenario
+    from marinebench.loading import is_scenario_file, load_scenario
 
     for f in files:
         try:

@@ -133,7 +133,7 @@ def test_list_shows_registered_kinds():
 def test_experiment_from_another_experiment(tiny_config, tmp_path):
     """`from:` starts from another experiment: its (relative) scenario, variants and metrics; mappings merge
     key by key, lists are replaced; the derived file names itself; a bad override names the derived file."""
-    from marinebench.config import load_experiment
+    from marinebench.loading import load_experiment
 
     (tmp_path / "sub").mkdir()
     derived = tmp_path / "sub" / "derived.yaml"

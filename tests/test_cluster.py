@@ -7,11 +7,11 @@ import pytest
 from typer.testing import CliRunner
 
 from marinebench.cli import app
-from marinebench.config import load_experiment
 from marinebench.errors import ClusterError
 from marinebench.experiments import sweep
 from marinebench.experiments.cluster import check_workers, dask_client, source_digest
 from marinebench.experiments.sweep import run_chunked, sweep_experiment
+from marinebench.loading import load_experiment
 
 from .conftest import ROOT
 

@@ -9,8 +9,8 @@ observer kind without a case here fails the first test.
 import pytest
 import yaml
 
-from marinebench.config import load_experiment, load_scenario, preflight
 from marinebench.experiments.runner import run, scenario_kinds_for
+from marinebench.loading import load_experiment, load_scenario, preflight
 from marinebench.registry import kinds
 
 from .conftest import ROOT

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 import yaml
 
-from marinebench.config import load_experiment, preflight
 from marinebench.dp_scenario import DpScenario, DpWorld
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import make_observer, plant_of, run, wants_lumped
+from marinebench.loading import load_experiment, preflight
 from marinebench.observers.dp import NpoTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 

@@ -6,10 +6,10 @@ to the bound cond * 1e-16 ~ 1e-7 instead."""
 
 import numpy as np
 
-from marinebench.config import load_experiment
 from marinebench.experiments.reference import reference_run
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
+from marinebench.loading import load_experiment
 
 from .conftest import ROOT
 

@@ -6,9 +6,9 @@ import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
-from marinebench.config import load_experiment
 from marinebench.dp_scenario import DpScenario, DpWorld
 from marinebench.experiments.runner import run
+from marinebench.loading import load_experiment
 from marinebench.sim.recorders import NormIntegral
 
 from .conftest import ROOT

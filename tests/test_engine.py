@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from marinebench.config import load_experiment
 from marinebench.errors import StiffnessError
 from marinebench.experiments.runner import run
+from marinebench.loading import load_experiment
 
 from .conftest import ROOT
 

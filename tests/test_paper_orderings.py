@@ -2,8 +2,8 @@
 
 import pytest
 
-from marinebench.config import load_experiment
 from marinebench.experiments.runner import run
+from marinebench.loading import load_experiment
 
 from .conftest import ROOT
 

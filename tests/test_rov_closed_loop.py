@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import yaml
 
-from marinebench.config import load_experiment
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
+from marinebench.loading import load_experiment
 from marinebench.rov_scenario import RovScenario, RovWorld, min_jerk
 from marinebench.sim.recorders import ControlEnergy
 
@@ -57,7 +57,7 @@ def test_control_energy_starts_when_the_reference_is_reached():
 
 
 def test_closed_loop_needs_controllers_and_estimation_needs_observers(tmp_path):
-    from marinebench.config import preflight
+    from marinebench.loading import preflight
 
     exp, path = experiment(tmp_path, [{"name": "x", "controller": {"kind": "srise"}}])
     preflight(exp, path)

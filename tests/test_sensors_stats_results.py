@@ -3,8 +3,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from marinebench.config import apply_set
 from marinebench.errors import ConfigError
+from marinebench.loading import apply_set
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.writer import atomic_directory, atomic_write_text
 from marinebench.scenario import stream_rngs

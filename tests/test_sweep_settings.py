@@ -7,10 +7,10 @@ import pytest
 from typer.testing import CliRunner
 
 from marinebench.cli import app
-from marinebench.config import load_experiment, preflight
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
+from marinebench.loading import load_experiment, preflight
 
 from .conftest import ROOT
 

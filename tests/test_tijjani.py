@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import yaml
 
-from marinebench.config import load_experiment, load_scenario, preflight
 from marinebench.controllers.rise import RISE_PRESETS
 from marinebench.controllers.spec import ControllerSpec
 from marinebench.design.cdo import (
@@ -18,6 +17,7 @@ from marinebench.design.cdo import (
 )
 from marinebench.errors import ConfigError, DesignError
 from marinebench.experiments.runner import run
+from marinebench.loading import load_experiment, load_scenario, preflight
 from marinebench.rov_scenario import min_jerk
 from marinebench.sim.recorders import RecoveryTime
 

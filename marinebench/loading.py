@@ -1,0 +1,325 @@
+"""Reading experiment and scenario YAML files into validated models, with file:key error mapping.
+
+An experiment YAML names a scenario file (``scenario: ../scenarios/x.yaml``) or embeds a scenario
+with overrides (``scenario: {from: ../scenarios/x.yaml, horizon: 10}``). ``--set dotted.key=value``
+edits the resolved document before validation; list items are addressed by index
+(``variants.0.observer.eps``) or by name (``variants[liu_eps0.1].observer.eps``). :func:`preflight`
+solves every observer design and checks the step before anything runs.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import ValidationError
+
+from marinebench.config import DP_SIGNALS, AnyScenario, Experiment
+from marinebench.errors import ConfigError
+
+
+def _read_yaml(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(path, "", "file not found") from None
+    except OSError as exc:
+        raise ConfigError(path, "", f"cannot read ({exc.strerror})") from None
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise ConfigError(path, "", f"invalid YAML: {where}{problem}") from None
+    if not isinstance(doc, dict):
+        raise ConfigError(path, "", "expected a mapping at the top level")
+    return doc
+
+
+def _deep_merge(base: dict, over: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        out[k] = _deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else copy.deepcopy(v)
+    return out
+
+
+def _leaf_paths(d: dict, prefix: str) -> list[str]:
+    out = []
+    for k, v in d.items():
+        out += _leaf_paths(v, f"{prefix}.{k}") if isinstance(v, dict) and v else [f"{prefix}.{k}"]
+    return out
+
+
+_TOKEN = re.compile(r"([^.\[\]]+)|\[([^\]]+)\]")
+
+
+def _split_path(key: str) -> list[str | tuple[str]]:
+    parts: list[str | tuple[str]] = []
+    pos = 0
+    for m in _TOKEN.finditer(key):
+        if m.start() != pos and key[pos:m.start()] != ".":
+            raise ValueError(f"malformed key '{key}'")
+        parts.append(m.group(1) if m.group(1) is not None else (m.group(2),))
+        pos = m.end()
+    if not parts or pos != len(key):
+        raise ValueError(f"malformed key '{key}'")
+    return parts
+
+
+def apply_set(doc: dict, assignment: str) -> None:
+    """Apply one ``dotted.key=value`` override in place (value parsed as YAML)."""
+    if "=" not in assignment:
+        raise ConfigError("--set", assignment, "expected dotted.key=value")
+    key, raw = assignment.split("=", 1)
+    try:
+        value = yaml.safe_load(raw) if raw != "" else ""
+        parts = _split_path(key.strip())
+    except (yaml.YAMLError, ValueError) as exc:
+        raise ConfigError("--set", key, str(exc).splitlines()[0]) from None
+    node: Any = doc
+    for i, part in enumerate(parts):
+        last = i == len(parts) - 1
+        if isinstance(part, tuple):  # [name] selector in a list of named items
+            if not isinstance(node, list):
+                raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
+            match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
+            if not match:
+                raise ConfigError("--set", key, f"no item named '{part[0]}'")
+            idx: int | str = match[0]
+        elif isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1})")
+            idx = int(part)
+        elif isinstance(node, dict):
+            idx = part
+        else:
+            raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
+        if last:
+            node[idx] = value
+        else:
+            if isinstance(node, dict) and idx not in node:
+                node[idx] = {}
+            node = node[idx]
+
+
+def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
+    """The file a ``from:`` in ``path`` names (relative to it), checked: a path, not circular, existing."""
+    if not isinstance(ref, str):
+        raise ConfigError(path, "from", f"expected a path to the {what} file")
+    bpath = (path.parent / ref).resolve()
+    if bpath in seen or bpath == path.resolve():
+        raise ConfigError(path, "from", f"circular {what} reference to {ref}")
+    if not bpath.exists():
+        raise ConfigError(path, "from", f"{what} file not found: {ref}")
+    return bpath
+
+
+def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A scenario file; ``from: other.yaml`` in it starts from that scenario (relative path) and overrides keys."""
+    doc = _read_yaml(path)
+    if "from" not in doc:
+        return doc
+    bpath = _from_path(doc.pop("from"), path, _seen, "scenario")
+    return _deep_merge(read_scenario(bpath, (*_seen, path.resolve())), doc)
+
+
+def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) -> Any:
+    """Replace a scenario reference (``file`` or ``{from: file, overrides...}``) by the merged document."""
+    if not (isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen)):
+        return scen
+    ref = scen if isinstance(scen, str) else scen["from"]
+    overrides = {} if isinstance(scen, str) else {k: v for k, v in scen.items() if k != "from"}
+    if not isinstance(ref, str):
+        raise ConfigError(path, f"{key}.from", "expected a file path")
+    spath = (path.parent / ref).resolve()
+    if not spath.exists():
+        raise ConfigError(path, key, f"scenario file not found: {ref}")
+    origins[key] = spath
+    for dotted in _leaf_paths(overrides, key):
+        origins["override " + dotted] = path
+    return _deep_merge(read_scenario(spath), overrides)
+
+
+def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dict, dict[str, Path]]:
+    """The resolved document of the experiment named by ``from:`` (relative path), without its name."""
+    bpath = _from_path(doc.pop("from"), path, seen, "experiment")
+    base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
+    base.pop("name", None)  # the derived file is its own experiment
+    return base, {**{k: v for k, v in origins.items() if k}, "from": bpath}
+
+
+def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None,
+                     _seen: tuple[Path, ...] = ()) -> tuple[dict, dict[str, Path]]:
+    """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins).
+
+    ``from: other.yaml`` starts from that experiment (its scenario resolved relative to it) and merges this
+    file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
+    doc = _read_yaml(path)
+    base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
+    origins[""] = path
+    if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
+        for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
+            origins["override " + dotted] = path
+    if "scenario" in doc:
+        doc["scenario"] = _inline_scenario(doc["scenario"], path, "scenario", origins)
+    if isinstance(doc.get("scenarios"), dict):
+        for name, scen in doc["scenarios"].items():
+            doc["scenarios"][name] = _inline_scenario(scen, path, f"scenarios.{name}", origins)
+    doc = _deep_merge(base, doc)
+    doc.setdefault("name", path.stem)
+    if profile is not None:
+        profiles = doc.get("profiles") or {}
+        if profile not in profiles:
+            raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
+        sets = list(profiles[profile]) + list(sets)
+    for s in sets:
+        apply_set(doc, s)
+        origins["--set " + s.split("=", 1)[0].strip()] = Path("--set")
+    return doc, origins
+
+
+def _loc(loc: tuple) -> str:
+    # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
+    tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
+            "open_loop_asv", "dp_supply", "rov_tracking", "supply_dp_linear", "supply_shipx_lf", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
+    return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
+
+
+def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -> ConfigError:
+    err = exc.errors()[0]
+    key = _loc(err["loc"])
+    file = origins[""]
+    for origin in sorted(o for o in origins if o.startswith("scenario")):  # the scenario file the key lives in
+        if key == origin or key.startswith(origin + "."):
+            file = origins[origin]
+    unknown = err["type"] == "extra_forbidden"
+    for origin, source in origins.items():
+        for tag in ("override ", "--set "):
+            if not origin.startswith(tag):
+                continue
+            dotted = origin[len(tag):]
+            # the key set there, a field inside it, or an unknown key the --set created on its way down
+            if key == dotted or key.startswith(dotted + ".") or (unknown and dotted.startswith(key + ".")):
+                file = source
+    msg = err["msg"].removeprefix("Value error, ")
+    if unknown:
+        msg = "unknown key"
+    where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
+    if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'
+        key, msg = where.groups()
+    more = len(exc.errors()) - 1
+    return ConfigError(file, key or "(top level)", msg + (f" (and {more} more)" if more else ""))
+
+
+def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
+    """Load and validate an experiment config; raises ConfigError naming the file and key."""
+    path = Path(path)
+    doc, origins = resolve_document(path, sets, profile)
+    if "variants" not in doc and is_scenario_file(path):
+        raise ConfigError(path, "", "a scenario file (a world), not an experiment: experiments name it under "
+                          "'scenario:' (marinebench validate checks scenario files)")
+    try:
+        exp = Experiment.model_validate(doc)
+    except ValidationError as exc:
+        raise validation_to_config_error(exc, origins) from None
+    return exp, origins
+
+
+def preflight(exp: Experiment, file: Path) -> None:
+    """Solve every variant's observer design and check the step before anything runs, so an infeasible
+    LMI or a too-large dt is a config error naming the file and key."""
+    if exp.scenarios is None:
+        return _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
+    position = {v.name: i for i, v in enumerate(exp.variants)}
+    for name in exp.scenarios:
+        part = exp.part(name)
+        _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
+
+
+def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
+    from marinebench.errors import DesignError, StiffnessError
+    from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of, wants_lumped
+    from marinebench.sim.engine import ObserverGroup, check_step
+
+    plant = plant_of(exp.scenario)
+    groups = []
+    allowed = getattr(exp.scenario, "PER_RUN", ())
+    closed_loop = exp.scenario.kind == "rov_tracking"
+    for i, v in zip(positions, exp.variants):
+        unknown = set(v.world) - set(allowed)
+        if unknown:
+            raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+        if closed_loop != (v.controller is not None):
+            need = "a 'controller'" if closed_loop else "an 'observer'"
+            raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
+        if closed_loop:
+            continue
+        if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
+            raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
+                              f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
+        try:
+            groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0]))
+        except DesignError as exc:
+            raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+    from marinebench.rov_scenario import ROV_SIGNALS
+
+    if closed_loop:
+        try:
+            exp.scenario.cdo_design()
+        except DesignError as exc:
+            raise ConfigError(file, f"{key}.cdo", str(exc)) from None
+        checked = set()
+        for i, v in zip(positions, exp.variants):
+            if v.observer is not None and v.observer.cdo:
+                cdo = v.observer.resolve(exp.scenario)[0]
+                if cdo.model_dump_json() not in checked:
+                    try:
+                        exp.scenario.cdo_design(cdo)
+                    except DesignError as exc:
+                        raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
+                    checked.add(cdo.model_dump_json())
+
+    signals = set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
+    for j, m in enumerate(exp.metrics):
+        if m.kind not in ("j_tot", "int", "recovery"):
+            bad = set(m.signals) - signals
+            if bad:
+                raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
+        if m.kind == "j_tot" and not set(DP_SIGNALS) <= signals:
+            raise ConfigError(file, f"metrics.{j}", "j_tot needs the DP state estimates (pose, bias, velocity), "
+                              "which no variant's observer produces (npo and resetting_fto do)")
+    if exp.engine.check_step:
+        try:
+            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
+        except StiffnessError as exc:
+            raise ConfigError(file, f"{key}.dt", str(exc)) from None
+
+
+def load_scenario(path: str | Path):
+    """Validate a scenario file of any kind (``kind:`` picks the model; default open_loop_asv)."""
+    from pydantic import TypeAdapter
+
+    path = Path(path)
+    doc = read_scenario(path)
+    try:
+        return TypeAdapter(AnyScenario).validate_python(doc)
+    except ValidationError as exc:
+        raise validation_to_config_error(exc, {"": path}) from None
+
+
+def is_scenario_file(path: Path, _depth: int = 0) -> bool:
+    """A scenario document has no ``variants`` key, nor does the file its ``from:`` starts from."""
+    try:
+        doc = _read_yaml(path)
+    except ConfigError:
+        return False
+    if "variants" in doc:
+        return False
+    base = doc.get("from")
+    if isinstance(base, str) and _depth < 20 and (path.parent / base).exists():
+        return is_scenario_file(path.parent / base, _depth + 1)
+    return True
