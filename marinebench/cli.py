@@ -298,8 +298,11 @@ def compare(
     atol: Annotated[float, typer.Option(help="absolute tolerance for 'same'")] = 0.0,
     fmt: Annotated[Format, typer.Option("--format", help="output format")] = Format.md,
     output: Annotated[Path | None, typer.Option(help="write the comparison to FILE")] = None,
+    strict: Annotated[bool, typer.Option(help="a baseline cell the candidate lacks (a dropped variant, signal or "
+                                         "metric) also fails, as a worse cell does")] = False,
 ) -> None:
-    """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse; 2: unusable input."""
+    """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse (or, with --strict,
+    missing); 2: unusable input."""
     from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
     from marinebench.results.writer import atomic_write_text
 
@@ -328,7 +331,8 @@ def compare(
         err.print(headline(table), markup=False)
     else:
         sys.stdout.write(text)
-    raise typer.Exit(1 if (table["verdict"] == "worse").any() else 0)
+    failing = {"worse", "missing"} if strict else {"worse"}
+    raise typer.Exit(1 if table["verdict"].isin(failing).any() else 0)
 
 
 @app.command()

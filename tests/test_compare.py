@@ -81,6 +81,10 @@ def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
     verdicts = dict(zip(zip(table["variant"], table["signal"]), table["verdict"]))
     assert verdicts[("a", "u")] == "better" and verdicts[("a", "v")] == "missing" and verdicts[("c", "u")] == "new"
     assert list(table["verdict"])[:2] == ["missing", "new"]
+    strict = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--strict"])
+    assert strict.exit_code == 1 and "1 missing" in strict.output  # a dropped cell fails a strict gate
+    only_new = runner.invoke(app, ["compare", str(tmp_path / "cand"), str(tmp_path / "cand"), "--strict"])
+    assert only_new.exit_code == 0
 
 
 def test_newly_diverged_run_is_worse(tmp_path, base_values):
