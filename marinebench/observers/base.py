@@ -2,7 +2,9 @@
 
 ``design`` (pure, cached) turns a tuning into gains; the batched observer is then built from one
 tuning per run so gains that differ per run are stacked as ``(B, n, m)`` arrays. ``derivative`` is
-the continuous-time right-hand side; the engine integrates it jointly with the plant.
+the continuous-time right-hand side; the engine integrates it jointly with the plant. A discrete-time
+observer (the DP observers) sets ``discrete = True`` and implements ``step(xhat, y, tau, k) -> xhat``
+instead, called once per engine step with the world's held sample (``world.sampled``).
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from marinebench.design.kalman import DpGains, kalman_gains
-from marinebench.observers.base import wrap_angle
+from marinebench.observers.base import rotate2, wrap_angle
 from marinebench.observers.fto import fto_jump, rk4_maps
 
 Vec3 = tuple[float, float, float]
@@ -248,9 +248,7 @@ class DpObserver:
         z1 = state.reshape(state.shape[0], 2, 9, 10)[:, 0, :, 9]
         out = {name: z1[:, i] for i, name in enumerate(SIGNALS)}
         if len(self.signals) > len(SIGNALS):
-            c, s = np.cos(z1[:, 2]), np.sin(z1[:, 2])
-            b = z1[:, 3:6]
-            rtb = np.stack([c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1], b[:, 2]], axis=1)  # R(psi)^T b
+            rtb = np.concatenate([rotate2(z1[:, 2], z1[:, 3:5], transpose=True), z1[:, 5:6]], axis=1)  # R(psi)^T b
             out.update(zip(LUMPED_SIGNALS, ((rtb - z1[:, 6:9] @ self.D.T) @ self.Minv.T).T))
         return out
 
