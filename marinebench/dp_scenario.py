@@ -157,7 +157,6 @@ class DpScenario(ScenarioBase):
     PER_RUN: ClassVar[tuple[str, ...]] = ("gnss_sigma", "heading_sigma_deg")
 
 
-
 class DpWorld:
     """Batched DP world; run ``b`` uses seed ``seed_of_run[b]`` and per-run sensor overrides."""
 

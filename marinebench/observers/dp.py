@@ -122,12 +122,14 @@ class DpObserver:
     """Batched NPO / resetting observer.
 
     State ``(B, 180)`` = ``[Phi_i | z_i]`` for i = 1, 2, each 9 x 10 (z travels as a 10th column of Phi,
-    so one batched matmul per step advances both). With ``lumped`` the observer also reports the lumped
-    disturbance its model implies, ``sigma_hat = M^-1 (R(psi_hat)^T b_hat - D nu_hat)`` (model (41) solved for
-    nu_dot - M^-1 tau; Bejarano eq. (6)), to compare with the estimators of sigma on the same world. The one-step maps ``P_i(psi)``, ``P_i`` acting on
+    so one batched matmul per step advances both). The one-step maps ``P_i(psi)``, ``P_i`` acting on
     ``[Phi | z]``, and the input maps ``G_y(psi) = H_i L_i(psi)``, ``G_u(psi) = H_i B`` are exact trig
     polynomials of order 4 in psi; their coefficients are fitted once per gain set from 16 headings
     (residual ~1e-13), so each step costs one GEMM instead of forming RK4 maps per run.
+
+    With ``lumped`` the observer also reports the lumped disturbance its model implies,
+    ``sigma_hat = M^-1 (R(psi_hat)^T b_hat - D nu_hat)`` (model (41) solved for nu_dot - M^-1 tau, Bejarano
+    eq. (6)), to compare with the estimators of sigma on the same world.
     """
 
     n_state = 180
