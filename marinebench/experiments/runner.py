@@ -202,6 +202,25 @@ def _run_single(
     groups = build_groups(exp, run_variant, plant_of(sc))
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
     n_steps = round(sc.horizon / sc.dt)
+    recorders = _recorders(exp, run_variant, run_seed, n_steps)
+    trace_signals = sorted({s for g in groups for s in g.observer.signals})
+    if hasattr(world, "estimates"):
+        trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(world.truth(0.0, world.x0)))
+    tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
+    if on_start is not None:
+        on_start(n_steps)
+    t0 = time.perf_counter()
+    diverged = simulate(world, groups, sc.dt, n_steps, recorders + ([tracer] if tracer else []), progress)
+    wall = time.perf_counter() - t0
+    metrics = _tidy(exp, _values(exp, recorders, groups, V * S), _estimated_signals(groups, world, V * S),
+                    diverged, run_variant, run_seed)
+    arrays = tracer.arrays() if tracer else (np.zeros(0), {}, {})
+    return RunResult(exp, metrics, summarise(metrics), arrays, run_variant, run_seed, wall, rate, design_summary(exp))
+
+
+def _recorders(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray, n_steps: int) -> list:
+    """One streaming recorder per configured metric, in the config's order."""
+    sc = exp.scenario
     recorders = []
     for m in exp.metrics:
         if m.kind == "j_tot":
@@ -217,52 +236,51 @@ def _run_single(
             recorders.append(RecoveryTime(ends, m.tol, m.window, twin))
         else:
             recorders.append(ErrorMoments(m.signals, m.t_start, m.t_end or sc.horizon))
-    trace_signals = sorted({s for g in groups for s in g.observer.signals})
-    if hasattr(world, "estimates"):
-        trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(world.truth(0.0, world.x0)))
-    tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
-    if on_start is not None:
-        on_start(n_steps)
-    t0 = time.perf_counter()
-    diverged = simulate(world, groups, sc.dt, n_steps, recorders + ([tracer] if tracer else []), progress)
-    wall = time.perf_counter() - t0
+    return recorders
 
-    per_metric: list[tuple[str, dict[str, np.ndarray]]] = []
+
+def _values(exp: Experiment, recorders: list, groups: list[ObserverGroup], n_runs: int) -> list[tuple[str, dict[str, np.ndarray]]]:
+    """(metric name, {signal: per-run value}) for every metric, then the observers' diagnostics (resets,
+    condition numbers) under signal ``z``."""
+    out: list[tuple[str, dict[str, np.ndarray]]] = []
     for spec, rec in zip(exp.metrics, recorders):
         if spec.kind == "j_tot":
-            per_metric.append((spec.label, {"z": rec.value}))
+            out.append((spec.label, {"z": rec.value}))
         elif spec.kind in ("int", "recovery"):
-            per_metric.append((spec.label, rec.value))
+            out.append((spec.label, rec.value))
         else:
-            per_metric.append((spec.label, rec.result(spec.kind)))
-    for g in groups:  # observer diagnostics (resets, condition numbers), signal "z"
+            out.append((spec.label, rec.result(spec.kind)))
+    for g in groups:
         diag = getattr(g.observer, "diagnostics", None)
         if diag is not None:
             for name, values in diag().items():
-                full = np.full(V * S, np.nan)
+                full = np.full(n_runs, np.nan)
                 full[g.index] = values
-                per_metric.append((name, {"z": full}))
+                out.append((name, {"z": full}))
+    return out
+
+
+def _tidy(exp: Experiment, values: list[tuple[str, dict[str, np.ndarray]]], estimated: list[set[str]],
+          diverged: np.ndarray, run_variant: np.ndarray, run_seed: np.ndarray) -> pd.DataFrame:
+    """The tidy ``metrics.csv`` rows: one per run, signal and metric, for the signals each run's observer
+    produces; a diverged run's values are NaN with status ``diverged``."""
     rows = []
     tag_keys = sorted({k for v in exp.variants for k in v.tags})
     labels = [m.label for m in exp.metrics]
-    estimated = _estimated_signals(groups, world, V * S)
-    for metric, values in per_metric:
-        for signal, per_run in values.items():
-            for b in range(V * S):
+    for metric, per_signal in values:
+        for signal, per_run in per_signal.items():
+            for b in range(len(run_variant)):
                 if not np.isfinite(per_run[b]) and (metric not in labels or signal not in estimated[b]):
                     continue  # a diagnostic or a signal this run's observer kind does not produce
                 ok = not diverged[b] and np.isfinite(per_run[b])
                 variant = exp.variants[run_variant[b]]
                 rows.append(
-                    (exp.name, sc.name, variant.name, int(run_seed[b]), signal, metric,
+                    (exp.name, exp.scenario.name, variant.name, int(run_seed[b]), signal, metric,
                      float(per_run[b]) if ok else float("nan"), "ok" if ok else "diverged",
                      *[variant.tags.get(k, "") for k in tag_keys])
                 )
     columns = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status", *tag_keys]
-    metrics = pd.DataFrame(rows, columns=columns)
-    summary = summarise(metrics)
-    arrays = tracer.arrays() if tracer else (np.zeros(0), {}, {})
-    return RunResult(exp, metrics, summary, arrays, run_variant, run_seed, wall, rate, design_summary(exp))
+    return pd.DataFrame(rows, columns=columns)
 
 
 def _estimated_signals(groups: list[ObserverGroup], world, n_runs: int) -> list[set[str]]:
