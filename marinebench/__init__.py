@@ -29,11 +29,9 @@ __all__ = ["load", "run", "write"]
 def load(path: str | Path, sets: Sequence[str] = (), profile: str | None = None) -> Experiment:
     """Read, validate and preflight an experiment YAML (``sets``: ``dotted.key=value`` overrides, as
     ``--set``; ``profile``: a named profile of the config, as ``--profile``)."""
-    from marinebench.loading import load_experiment, preflight
+    from marinebench.loading import load_checked
 
-    exp, _ = load_experiment(path, list(sets), profile)
-    preflight(exp, Path(path))
-    return exp
+    return load_checked(path, list(sets), profile)[0]
 
 
 def run(experiment: Experiment, traces: bool = True) -> RunResult:

@@ -31,16 +31,14 @@ def fail(message: str, code: int = 2) -> None:
 
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
-    from marinebench.loading import load_experiment, preflight
+    from marinebench.loading import load_checked
 
     sets = list(sets)
     if seed is not None:
         sets.append(f"seed={seed}")
     if seeds is not None:
         sets.append(f"seeds={seeds}")
-    exp, origins = load_experiment(config, sets, profile)
-    preflight(exp, config)
-    return exp, origins
+    return load_checked(config, sets, profile)
 
 
 def _work(exp) -> float:

@@ -229,6 +229,14 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
     return exp, origins
 
 
+def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
+    """:func:`load_experiment`, then :func:`preflight`: an experiment ready to run, and the files it came from
+    (what ``marinebench run`` and :func:`marinebench.load` do before simulating)."""
+    exp, origins = load_experiment(path, sets, profile)
+    preflight(exp, Path(path))
+    return exp, origins
+
+
 def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key."""

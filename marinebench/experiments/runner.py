@@ -117,12 +117,13 @@ class RunResult:
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
     """One batched observer per observer kind, with one tuning per run."""
     groups = []
+    lumped = wants_lumped(exp)
     for kind in observer_kinds_for(exp.scenario):
         idx = np.array([b for b, v in enumerate(run_variant)
                         if exp.variants[v].observer is not None and exp.variants[v].observer.kind == kind], dtype=int)
         if idx.size:
             tunings = [exp.variants[run_variant[b]].observer for b in idx]
-            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant, wants_lumped(exp)), idx))
+            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant, lumped), idx))
     return groups
 
 
