@@ -298,6 +298,8 @@ def compare(
     output: Annotated[Path | None, typer.Option(help="write the comparison to FILE")] = None,
     strict: Annotated[bool, typer.Option(help="a baseline cell the candidate lacks (a dropped variant, signal or "
                                          "metric) also fails, as a worse cell does")] = False,
+    all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
+                                            "csv always hold every cell)")] = False,
 ) -> None:
     """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse (or, with --strict,
     missing); 2: unusable input."""
@@ -319,7 +321,7 @@ def compare(
     except MarinebenchError as exc:
         fail(str(exc))
     if fmt is Format.md:
-        text = to_markdown(table)
+        text = to_markdown(table, all_cells=all_cells)
     elif fmt is Format.json:
         text = json.dumps({"summary": headline(table), "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
     else:

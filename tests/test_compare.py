@@ -87,6 +87,29 @@ def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
     assert only_new.exit_code == 0
 
 
+def test_markdown_lists_changed_cells_and_counts_the_rest(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = dict(base_values)
+    cand[("a", "u")] = base_values[("a", "u")] * 0.5
+    cand[("c", "u")] = base_values[("a", "u")]
+    write_result(tmp_path / "cand", "exp", cand)
+    args = ["compare", str(tmp_path / "base"), str(tmp_path / "cand")]
+    rows = [ln for ln in runner.invoke(app, args).output.splitlines() if ln.startswith("| ") and "---" not in ln][1:]
+    assert [r.split(" | ")[0] for r in rows] == ["| **better**"]
+    assert "3 same and 1 new cell(s) not listed" in runner.invoke(app, args).output
+    every = [ln for ln in runner.invoke(app, [*args, "--all"]).output.splitlines() if ln.startswith("| ")][1:]
+    assert len(every) == 5  # 4 paired cells and the new one
+
+
+def test_result_sets_with_nothing_in_common_are_refused(tmp_path, base_values):
+    """A gate that pairs no cell (a wrong directory) must not pass silently."""
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "cand", "other", base_values)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 2 and "no cell in common" in res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
 def test_newly_diverged_run_is_worse(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})

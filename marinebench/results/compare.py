@@ -9,7 +9,8 @@ change, and a verdict:
   tolerance alone decides); direction from :data:`HIGHER_IS_BETTER` (lower is better by default);
 - ``missing``: in the baseline only; ``new``: in the candidate only.
 
-A run that diverged in the candidate but not in the baseline is ``worse``.
+A run that diverged in the candidate but not in the baseline is ``worse``. Two result sets with no cell
+in common are refused (:func:`require_pairs`): a gate that pairs nothing must not pass.
 """
 
 from __future__ import annotations
@@ -170,10 +171,19 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
     return out.sort_values(["_sev", "_mag"] + keys).drop(columns=["_sev", "_mag"]).reset_index(drop=True)
 
 
+def require_pairs(table: pd.DataFrame) -> None:
+    """Refuse a comparison in which no cell is in both: a wrong directory, not a passing gate."""
+    if len(table) and not table["verdict"].isin(("worse", "better", "same")).any():
+        raise MarinebenchError("baseline and candidate have no cell in common (experiment, scenario, variant, "
+                               "signal, metric): are these the right directories?")
+
+
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
     bdirs, cdirs = find_results(baseline), find_results(candidate)
     check_compatible(bdirs, cdirs)
-    return compare_frames(load_metrics(bdirs, metrics), load_metrics(cdirs, metrics), tol)
+    table = compare_frames(load_metrics(bdirs, metrics), load_metrics(cdirs, metrics), tol)
+    require_pairs(table)
+    return table
 
 
 def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
@@ -199,12 +209,21 @@ def _fmt(x) -> str:
     return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.4g}"
 
 
-def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
+QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
+
+
+def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False) -> str:
+    """A markdown table of the cells, most severe first (for a PR comment or a CI log).
+
+    ``same`` and ``new`` cells are only counted, in a line under the table, unless ``all_cells``: a full
+    reference holds thousands of them, and a gate's reader needs the changed ones.
+    """
+    shown = table if all_cells else table[~table["verdict"].isin(QUIET)]
     lines = [f"### {title}: {headline(table)}", ""]
     lines.append("| verdict | experiment | scenario | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
     lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
     icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
-    for r in table.itertuples(index=False):
+    for r in shown.itertuples(index=False):
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
         if np.isnan(r.ci_low):
             ci = "–"
@@ -214,4 +233,10 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare") -> str:
             ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
         lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
                      f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
+    hidden = len(table) - len(shown)
+    if hidden:
+        counts = table["verdict"].value_counts()
+        what = " and ".join(f"{counts[v]} {v}" for v in QUIET if counts.get(v, 0))
+        lines += ["", f"{what} cell(s) not listed (`--all` lists every cell)."]
     return "\n".join(lines) + "\n"
+
