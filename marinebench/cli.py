@@ -76,7 +76,7 @@ def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, 
 
 @app.command()
 def run(
-    configs: Annotated[list[Path], typer.Argument(help="experiment YAML files")],
+    configs: Annotated[list[Path], typer.Argument(metavar="CONFIG", help="experiment YAML files")],
     out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
     seed: Annotated[int | None, typer.Option(min=0, help="root seed (overrides the config)")] = None,
     seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per variant")] = None,
@@ -147,7 +147,7 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> None:
 
 @app.command()
 def sweep(
-    params: Annotated[list[str], typer.Argument(help="parameters to sweep one at a time (from the config's sweep.params)")],
+    params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time (from the config's sweep.params)")],
     config: Annotated[Path, typer.Option(help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
     n: Annotated[int | None, typer.Option("--n", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option(help="comma-separated world groups (default: all)")] = None,
@@ -286,8 +286,8 @@ class Format(str, Enum):
 
 @app.command()
 def compare(
-    baseline: Annotated[Path, typer.Argument(help="result directory or tree (e.g. results/)")],
-    candidate: Annotated[Path | None, typer.Argument(help="result directory or tree to check")] = None,
+    baseline: Annotated[Path, typer.Argument(metavar="BASELINE", help="result directory or tree (e.g. results/)")],
+    candidate: Annotated[Path | None, typer.Argument(metavar="CANDIDATE", help="result directory or tree to check")] = None,
     variants: Annotated[
         tuple[str, str] | None, typer.Option(help="compare two variants of BASELINE instead: A B (B vs A)")
     ] = None,
@@ -337,7 +337,7 @@ def compare(
 
 @app.command()
 def report(
-    results: Annotated[Path, typer.Argument(help="result directory or tree")],
+    results: Annotated[Path, typer.Argument(metavar="RESULTS", help="result directory or tree")],
     out_file: Annotated[Path, typer.Option("--out", help="HTML file to write")] = Path("report.html"),
     compare_with: Annotated[Path | None, typer.Option("--compare", help="baseline results to compare against")] = None,
 ) -> None:
@@ -354,7 +354,7 @@ def report(
 
 
 @app.command()
-def validate(files: Annotated[list[Path], typer.Argument(help="experiment or scenario YAML files")]) -> None:
+def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="experiment or scenario YAML files")]) -> None:
     """Check configs (and solve their observer designs) without running them."""
     from marinebench.loading import is_scenario_file, load_scenario
 
