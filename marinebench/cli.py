@@ -1,7 +1,7 @@
 """marinebench command line: thin layer over config loading, the runner and the writers.
 
-Exit codes: 0 success, 1 failure of a check (reserved for ``compare``), 2 unusable input (config
-errors, infeasible designs, a step too large for the observer gains).
+Exit codes: 0 success, 1 failure of a check (``compare``; ``run --require-claims``), 2 unusable input
+(config errors, infeasible designs, a step too large for the observer gains).
 """
 
 from __future__ import annotations
@@ -47,10 +47,11 @@ def _work(exp) -> float:
     return sum(len(exp.variants) * exp.seeds * w.horizon / w.dt for w in worlds)
 
 
-def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None]:
-    """Simulate one experiment and write its results atomically; returns the summary line and a warning (or
-    None). Errors are re-raised as one line naming the file."""
+def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None, int]:
+    """Simulate one experiment and write its results atomically; returns the summary line, a warning (or
+    None) and the number of its claims that fail. Errors are re-raised as one line naming the file."""
     from marinebench.experiments.runner import run as run_experiment
+    from marinebench.results.claims import evaluate, summary_line
     from marinebench.results.outputs import write_run
 
     try:
@@ -59,19 +60,22 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
         raise MarinebenchError(f"{path}: scenario.dt: {exc}") from None
     except MarinebenchError as exc:
         raise MarinebenchError(f"{path}: {exc}") from None
-    write_run(result, target, origins)
+    claims = evaluate(exp, result.metrics)
+    write_run(result, target, origins, claims)
     n_div = int((result.metrics["status"] != "ok").sum())
     warning = f"warning: {exp.name}: {n_div} metric values from diverged runs excluded" if n_div else None
-    return f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s -> {target}", warning
+    checked = f", {summary_line(claims)}" if claims else ""
+    line = f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s{checked} -> {target}"
+    return line, warning, sum(not c.holds for c in claims)
 
 
-def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, str | None, str | None]:
-    """``_run_and_write`` in a worker process: (line, warning, error) as plain strings (exceptions with custom
-    constructors do not always survive pickling)."""
+def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, str | None, int, str | None]:
+    """``_run_and_write`` in a worker process: (line, warning, failing claims, error) as plain values
+    (exceptions with custom constructors do not always survive pickling)."""
     try:
         return (*_run_and_write(path, exp, origins, target), None)
     except MarinebenchError as exc:
-        return None, None, str(exc)
+        return None, None, 0, str(exc)
 
 
 @app.command()
@@ -85,8 +89,11 @@ def run(
     jobs: Annotated[int, typer.Option("--jobs", "-j", min=0, help="experiments run at once in separate processes "
                                       "(0: one per core); the numbers do not depend on it")] = 1,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
+                                                 "everything is written")] = False,
 ) -> None:
-    """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md, figures/."""
+    """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md (claims.md),
+    figures/."""
     import os
 
     try:
@@ -95,8 +102,15 @@ def run(
         fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
     jobs = min(jobs or os.cpu_count() or 1, len(loaded))
-    if jobs > 1:
-        return _run_parallel(loaded, base, jobs, quiet)
+    failing = _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
+    if require_claims and failing:
+        err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
+        raise typer.Exit(1)
+
+
+def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
+    """The experiments one after the other with a progress bar each; returns the number of failing claims."""
+    failing = 0
     for path, exp, origins in loaded:
         try:
             with Progress(
@@ -104,7 +118,7 @@ def run(
                 TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
             ) as bar:
                 task = bar.add_task(exp.name, total=1)
-                line, warning = _run_and_write(
+                line, warning, n_failing = _run_and_write(
                     path, exp, origins, base / path.stem,
                     progress=lambda n, task=task: bar.advance(task, n),
                     on_start=lambda n, task=task: bar.update(task, total=n),
@@ -112,19 +126,21 @@ def run(
                 bar.update(task, completed=bar.tasks[0].total)
         except MarinebenchError as exc:
             fail(str(exc))
+        failing += n_failing
         if warning:
             err.print(warning, markup=False)
         if not quiet:
             out.print(line, markup=False)
+    return failing
 
 
-def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> None:
+def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
     """``run --jobs N``: each experiment in a worker process (spawned), the longest first. Every experiment
     that can finish is written; the first error is reported afterwards (exit 2)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    errors = []
+    errors, failing = [], 0
     order = sorted(loaded, key=lambda item: _work(item[1]), reverse=True)
     with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool, Progress(
         TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
@@ -133,7 +149,8 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> None:
         task = bar.add_task("run", total=len(order))
         futures = [pool.submit(_run_in_worker, path, exp, origins, base / path.stem) for path, exp, origins in order]
         for future in as_completed(futures):
-            line, warning, error = future.result()
+            line, warning, n_failing, error = future.result()
+            failing += n_failing
             bar.advance(task)
             if error:
                 errors.append(error)
@@ -143,6 +160,7 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> None:
                 out.print(line, markup=False)
     if errors:
         fail(errors[0])
+    return failing
 
 
 @app.command()

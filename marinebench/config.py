@@ -279,6 +279,102 @@ class SweepSpec(BaseModel):
         return self.metrics or [self.metric]
 
 
+class _Claim(BaseModel):
+    """A statement of the paper, checked on our runs (``claims.md``); ``metric`` and ``signals`` default to the
+    table's, ``scenarios`` to every scenario its variants run on."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = Field(..., description="the claim, in the paper's words or close to them")
+    source: str = Field("", description="where the paper makes it, e.g. 'Table IV' or 'Sec. IV-B'")
+    metric: str | None = Field(None, description="metric name (default: the table's metric)")
+    signals: list[str] | None = Field(None, min_length=1, description="default: the table's signals")
+    scenarios: list[str] | None = Field(None, min_length=1, description="multi-scenario experiments: where it is "
+                                        "checked (default: every scenario all its variants run on)")
+
+    @property
+    def variant_names(self) -> list[str]:
+        raise NotImplementedError
+
+
+class LessClaim(_Claim):
+    """mean(a) < factor * mean(b) for every signal and scenario (means over seeds): an ordering (factor 1),
+    "cuts by 10x" (0.1), "at least 20 % below" (0.8), "at most 10 % above" (1.1). ``b`` may list several
+    variants ("the best of them": below each)."""
+
+    kind: Literal["less"] = "less"
+    a: str
+    b: str | list[str]
+    factor: float = Field(1.0, gt=0)
+
+    @property
+    def others(self) -> list[str]:
+        return [self.b] if isinstance(self.b, str) else list(self.b)
+
+    @property
+    def variant_names(self) -> list[str]:
+        return [self.a, *self.others]
+
+
+class OrderClaim(_Claim):
+    """The variants' means increase in the order listed, for every signal and scenario (e.g. ``[cdo_srise,
+    srise, rise]`` for "RISE > S+RISE > CDO-S+RISE")."""
+
+    kind: Literal["order"] = "order"
+    variants: list[str] = Field(..., min_length=2)
+
+    @property
+    def variant_names(self) -> list[str]:
+        return list(self.variants)
+
+
+class WithinClaim(_Claim):
+    """The variants' means agree for every signal and scenario: largest / smallest <= ``factor`` ("within a
+    factor 1.5 of each other"), or each within ``rtol`` of the first variant's ("changes by less than 10 %")."""
+
+    kind: Literal["within"] = "within"
+    variants: list[str] = Field(..., min_length=2)
+    factor: float | None = Field(None, gt=1)
+    rtol: float | None = Field(None, gt=0)
+
+    @model_validator(mode="after")
+    def _one_bound(self) -> WithinClaim:
+        if (self.factor is None) == (self.rtol is None):
+            raise ValueError("give exactly one of 'factor' or 'rtol'")
+        return self
+
+    @property
+    def variant_names(self) -> list[str]:
+        return list(self.variants)
+
+
+class AtMostClaim(_Claim):
+    """Every seed's value of variant ``a`` is at most ``value`` (e.g. a recovery time within 2 s)."""
+
+    kind: Literal["at_most"] = "at_most"
+    a: str
+    value: float
+
+    @property
+    def variant_names(self) -> list[str]:
+        return [self.a]
+
+
+class NearPaperClaim(_Claim):
+    """Every tabulated mean of ``variants`` (default: those with paper values) is within ``factor`` of the
+    paper's value (``table.paper``), either way."""
+
+    kind: Literal["near_paper"] = "near_paper"
+    factor: float = Field(2.0, gt=1)
+    variants: list[str] | None = None
+
+    @property
+    def variant_names(self) -> list[str]:
+        return list(self.variants or [])
+
+
+Claim = Annotated[LessClaim | OrderClaim | WithinClaim | AtMostClaim | NearPaperClaim, Field(discriminator="kind")]
+
+
 class EngineOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
     stiffness_limit: float = Field(
@@ -308,6 +404,9 @@ class Experiment(BaseModel):
     engine: EngineOptions = Field(default_factory=EngineOptions)
     assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
     sweep: SweepSpec | None = None
+    claims: list[Claim] = Field(
+        default_factory=list, description="the paper's claims about these runs, checked on our means: claims.md"
+    )
     profiles: dict[str, list[str]] = Field(
         default_factory=dict,
         description="named lists of dotted.key=value overrides, selected with `run --profile NAME` "
@@ -320,8 +419,49 @@ class Experiment(BaseModel):
             raise ValueError("give exactly one of 'scenario' or 'scenarios'")
         self._fill_signals()
         if self.scenarios is not None:
-            return self._check_study()
-        return self._check_single()
+            self._check_study()
+        else:
+            self._check_single()
+        return self._check_claims()
+
+    def claim_metric(self, claim) -> str | None:
+        if claim.metric is not None or self.table is None:
+            return claim.metric
+        return (self.table.metrics or [self.table.metric])[0]
+
+    def claim_signals(self, claim) -> list[str]:
+        """The signals a claim covers: its own, or the table's."""
+        return list(claim.signals or (self.table.signals if self.table is not None else None) or [])
+
+    def metric_signals(self, label: str) -> list[str] | None:
+        """The signals a metric records (None for the per-run diagnostics)."""
+        m = next((m for m in self.metrics if m.label == label), None)
+        if m is None:
+            return None
+        return ["z"] if m.kind == "j_tot" else list(m.signals or [])
+
+    def _check_claims(self) -> Experiment:
+        names = {v.name for v in self.variants}
+        for i, c in enumerate(self.claims):
+            where = f"claims.{i}"
+            unknown = [n for n in c.variant_names if n not in names]
+            if unknown:
+                raise ValueError(f"{where}: unknown variants {unknown}")
+            metric = self.claim_metric(c)
+            if metric is None:
+                raise ValueError(f"{where}: give a 'metric' (there is no table to take it from)")
+            recorded = self.metric_signals(metric)
+            if recorded is None:
+                raise ValueError(f"{where}: metric '{metric}' is not among metrics {[m.label for m in self.metrics]}")
+            signals = self.claim_signals(c)
+            missing = [s for s in signals if s not in recorded]
+            if not signals or missing:
+                raise ValueError(f"{where}: signals {missing or signals} are not recorded by metric '{metric}'")
+            if c.scenarios is not None and not set(c.scenarios) <= set(self.scenario_names):
+                raise ValueError(f"{where}: unknown scenarios {sorted(set(c.scenarios) - set(self.scenario_names))}")
+            if c.kind == "near_paper" and (self.table is None or self.table.paper is None):
+                raise ValueError(f"{where}: near_paper needs the table's paper values")
+        return self
 
     def _fill_signals(self) -> None:
         """Default signals of error metrics and the table from the scenario kind (written out in the resolved config)."""

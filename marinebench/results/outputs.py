@@ -8,6 +8,9 @@ import yaml
 
 from marinebench.experiments.runner import RunResult
 from marinebench.plotting.figures import timeseries, tracking
+from marinebench.results.claims import ClaimResult, manifest_entries
+from marinebench.results.claims import evaluate as evaluate_claims
+from marinebench.results.claims import markdown as claims_markdown
 from marinebench.results.tables import markdown_table
 from marinebench.results.writer import atomic_directory, manifest
 
@@ -46,12 +49,18 @@ def model_assumptions(worlds: dict) -> list[str]:
             for w in worlds.values() if getattr(w, "design_vessel", None) not in (None, w.vessel)]
 
 
-def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Path:
+def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims: list[ClaimResult] | None = None) -> Path:
+    """Write one experiment's result directory atomically (``claims``: its checked claims, if already
+    evaluated; a config with ``claims:`` also gets ``claims.md``)."""
     exp = result.experiment
+    if claims is None:
+        claims = evaluate_claims(exp, result.metrics)
     with atomic_directory(out_dir) as tmp:
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(exp))
         result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "table.md").write_text(markdown_table(exp, result.summary))
+        if claims:
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims))
         figdir = tmp / "figures"
         figdir.mkdir()
         for part in result.parts.values() or [result]:
@@ -74,6 +83,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path]) -> Pat
                 assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + model_assumptions(worlds)
                 + list(exp.assumptions),
                 designs=result.designs,
+                claims=manifest_entries(claims),
             )
         )
     return out_dir

@@ -89,9 +89,9 @@ def render_report(results: Path, compare_with: Path | None = None) -> str:
         parts.append(markdown_to_html(to_markdown(table, "compare")))
     for name, d in dirs.items():
         parts.append(f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>')
-        table = d / "table.md"
-        if table.exists():
-            parts.append(markdown_to_html(table.read_text()))
+        for md in ("table.md", "claims.md"):
+            if (d / md).exists():
+                parts.append(markdown_to_html((d / md).read_text()))
         for png in sorted((d / "figures").glob("*.png")):
             data = base64.b64encode(png.read_bytes()).decode()
             parts.append(f'<figure><img alt="{html.escape(png.name)}" src="data:image/png;base64,{data}">'

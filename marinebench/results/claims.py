@@ -1,0 +1,187 @@
+"""The paper's claims about an experiment (``claims:`` in its config), checked on our runs: ``claims.md``.
+
+A claim is checked per scenario and signal on the means over seeds, the numbers the table shows. Beside
+the verdict, its statistic (a ratio of means, or the largest value over seeds) gets a 95 % bootstrap
+interval over seeds: the same seed draws resampled for every variant (the variants of one seed share its
+world), so a claim that holds on these means but would not on another draw of seeds is visible. Paper
+values enter only ``near_paper`` claims, and only as the yardstick.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from marinebench.config import Experiment, LessClaim, NearPaperClaim, OrderClaim, WithinClaim
+
+
+@dataclass
+class Check:
+    """One scenario and signal of a claim."""
+
+    scenario: str
+    signal: str
+    means: dict[str, float]
+    statistic: float
+    ci: tuple[float, float] | None
+    needs: str
+    holds: bool
+
+
+@dataclass
+class ClaimResult:
+    claim: object
+    metric: str
+    checks: list[Check] = field(default_factory=list)
+
+    @property
+    def holds(self) -> bool:
+        return bool(self.checks) and all(c.holds for c in self.checks)
+
+
+def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, metric: str) -> pd.Series:
+    sel = metrics[(metrics["scenario"] == scenario) & (metrics["variant"] == variant) & (metrics["signal"] == signal)
+                  & (metrics["metric"] == metric) & (metrics["status"] == "ok")]
+    return sel.set_index("seed")["value"].astype(float)
+
+
+def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: float = 0.95, n_boot: int = 2000,
+                 seed: int = 0) -> tuple[float, float] | None:
+    """Percentile interval of ``stat(*values)`` with the seeds (rows, aligned across ``values``) resampled."""
+    n = len(values[0])
+    if n < 2:
+        return None
+    idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+    draws = np.array([stat(*(v[i] for v in values)) for i in idx])
+    draws = draws[np.isfinite(draws)]
+    if not draws.size:
+        return None
+    alpha = (1 - level) / 2
+    return float(np.quantile(draws, alpha)), float(np.quantile(draws, 1 - alpha))
+
+
+def _aligned(series: list[pd.Series]) -> list[np.ndarray]:
+    common = series[0].index
+    for s in series[1:]:
+        common = common.intersection(s.index)
+    return [s.loc[common].to_numpy() for s in series]
+
+
+def _scenarios(exp: Experiment, metrics: pd.DataFrame, claim, variants: list[str], metric: str) -> list[str]:
+    if claim.scenarios is not None:
+        return list(claim.scenarios)
+    have = metrics[metrics["metric"] == metric].groupby("scenario")["variant"].agg(set)
+    return [s for s in exp.scenario_names if s in have.index and set(variants) <= have[s]]
+
+
+def _paper_value(exp: Experiment, variant: str, scenario: str, metric: str, signal: str) -> float | None:
+    values = exp.table.paper.values.get(variant, {})
+    key = signal if exp.scenarios is None else f"{scenario}/{metric}/{signal}"
+    return values.get(key)
+
+
+def evaluate(exp: Experiment, metrics: pd.DataFrame) -> list[ClaimResult]:
+    """Check every claim of ``exp`` on its tidy metrics (``metrics.csv``)."""
+    results = []
+    for claim in exp.claims:
+        metric = exp.claim_metric(claim)
+        res = ClaimResult(claim, metric)
+        if isinstance(claim, NearPaperClaim):
+            variants = claim.variants or [v.name for v in exp.variants if v.name in exp.table.paper.values]
+        else:
+            variants = claim.variant_names
+        for scenario in _scenarios(exp, metrics, claim, variants, metric):
+            for signal in exp.claim_signals(claim):
+                res.checks += _checks(exp, metrics, claim, variants, scenario, signal, metric)
+        results.append(res)
+    return results
+
+
+def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Check]:
+    series = {v: _per_seed(metrics, scenario, v, signal, metric) for v in variants}
+    means = {v: float(s.mean()) if len(s) else math.nan for v, s in series.items()}
+
+    def check(stat: float, ci, needs: str, holds: bool, shown: list[str] = variants) -> Check:
+        return Check(scenario, signal, {v: means[v] for v in shown}, stat, ci, needs, bool(holds) and math.isfinite(stat))
+
+    if isinstance(claim, LessClaim | OrderClaim):
+        if isinstance(claim, LessClaim):
+            pairs, factor = [(claim.a, other) for other in claim.others], claim.factor
+        else:  # consecutive pairs of the listed order
+            pairs, factor = list(zip(claim.variants[:-1], claim.variants[1:], strict=True)), 1.0
+        out = []
+        for lo, hi in pairs:
+            a, b = _aligned([series[lo], series[hi]])
+            ratio = means[lo] / means[hi]
+            ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
+            out.append(check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi]))
+        return out
+    if isinstance(claim, WithinClaim):
+        if claim.factor is not None:  # one check over all the variants
+            ratio = max(means.values()) / min(means.values())
+            ci = bootstrap_ci(_aligned(list(series.values())), lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
+            return [check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor)]
+        first, out = variants[0], []
+        for other in variants[1:]:
+            x, y = _aligned([series[other], series[first]])
+            ratio = means[other] / means[first]
+            ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
+            out.append(check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other]))
+        return out
+    if isinstance(claim, NearPaperClaim):
+        out = []
+        for v in variants:
+            paper = _paper_value(exp, v, scenario, metric, signal)
+            if paper is None:
+                continue
+            d = exp.table.display.get(f"{metric}/{signal}")
+            scale = d.scale if d is not None else 1.0
+            ratio = means[v] * scale / paper
+            ci = bootstrap_ci([series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p)
+            lo, hi = 1 / claim.factor, claim.factor
+            out.append(Check(scenario, signal, {v: means[v], "paper": paper / scale}, ratio, ci,
+                             f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi))
+        return out
+    worst = float(series[claim.a].max()) if len(series[claim.a]) else math.nan  # AtMostClaim
+    return [check(worst, None, f"≤ {claim.value:g}", worst <= claim.value)]
+
+
+def _num(x: float) -> str:
+    return "–" if x is None or not math.isfinite(x) else f"{x:.3g}"
+
+
+def summary_line(results: list[ClaimResult]) -> str:
+    return f"{sum(r.holds for r in results)} of {len(results)} claims hold"
+
+
+def markdown(exp: Experiment, results: list[ClaimResult]) -> str:
+    """``claims.md``: the verdict per claim, then every check with its numbers."""
+    title = exp.table.title if exp.table is not None else exp.name
+    lines = [f"## Claims checked: {title}", "",
+             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per scenario and signal. The "
+             "statistic is the ratio of means the claim is about (for `≤ value` claims the largest value over "
+             "seeds), with a 95% bootstrap interval over seeds (the same seeds resampled for every variant). "
+             "A claim holds when every check holds on the means."), "",
+             f"**{summary_line(results)}.**", "",
+             "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
+    for i, r in enumerate(results, 1):
+        verdict = "holds" if r.holds else "**fails**"
+        lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric} |")
+    lines += ["", "| # | scenario | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
+    for i, r in enumerate(results, 1):
+        if not r.checks:
+            lines.append(f"| {i} | – | – | no data | – | – | **fails** |")
+        for c in r.checks:
+            means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
+            stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
+            lines.append(f"| {i} | {c.scenario} | {c.signal} | {means} | {stat} | {c.needs} | "
+                         f"{'holds' if c.holds else '**fails**'} |")
+    return "\n".join(lines) + "\n"
+
+
+def manifest_entries(results: list[ClaimResult]) -> list[dict]:
+    return [{"text": r.claim.text, "source": r.claim.source, "holds": r.holds} for r in results]

@@ -1,0 +1,122 @@
+"""Claims (``claims:``): verdicts and statistics on planted metrics, config errors, claims.md through the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.loading import load_experiment
+from marinebench.results.claims import bootstrap_ci, evaluate
+
+from .conftest import ROOT, write_tiny
+
+runner = CliRunner()
+
+
+def tiny_with_claims(tmp_path, claims: list[dict]):
+    path = write_tiny(tmp_path)
+    doc = yaml.safe_load(path.read_text())
+    doc["claims"] = claims
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def planted(values: dict[tuple[str, str], list[float]], scenario: str = "cs2_noisy") -> pd.DataFrame:
+    """Tidy metrics: values[(variant, signal)] -> per-seed std values."""
+    rows = [("tiny", scenario, v, s, sig, "std", x, "ok") for (v, sig), xs in values.items() for s, x in enumerate(xs)]
+    return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+
+
+A, B = "proposed_d1.2", "liu_eps0.2"
+METRICS = planted({(A, "u"): [1.0, 1.2, 1.1], (B, "u"): [2.0, 2.2, 2.1],
+                   (A, "sigma_u"): [3.0, 3.3, 3.0], (B, "sigma_u"): [3.0, 3.0, 3.3]})
+
+
+def test_less_within_and_at_most_on_planted_means(tmp_path):
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "less", "a": A, "b": B, "signals": ["u"], "text": "a below b"},
+        {"kind": "less", "a": A, "b": B, "factor": 0.5, "signals": ["u"], "text": "a halves b"},
+        {"kind": "less", "a": B, "b": A, "signals": ["u"], "text": "reversed"},
+        {"kind": "within", "variants": [B, A], "rtol": 0.05, "signals": ["sigma_u"], "text": "sigma equal"},
+        {"kind": "within", "variants": [A, B], "factor": 1.5, "signals": ["u"], "text": "u within 1.5x"},
+        {"kind": "at_most", "a": A, "value": 1.15, "signals": ["u"], "text": "every seed <= 1.15"},
+        {"kind": "order", "variants": [A, B], "signals": ["u", "sigma_u"], "text": "order on both"},
+    ]))
+    res = evaluate(exp, METRICS)
+    assert [r.holds for r in res] == [True, False, False, True, False, False, False]
+    less = res[0].checks[0]
+    assert less.statistic == pytest.approx(1.1 / 2.1) and less.means == {A: pytest.approx(1.1), B: pytest.approx(2.1)}
+    assert res[1].checks[0].statistic == pytest.approx(1.1 / 2.1)  # 0.524 is not below 0.5
+    assert res[3].checks[0].statistic == pytest.approx(1.0)  # equal means: within any tolerance
+    assert res[4].checks[0].statistic == pytest.approx(2.1 / 1.1)
+    assert res[5].checks[0].statistic == pytest.approx(1.2)  # the largest seed, not the mean
+    assert [c.holds for c in res[6].checks] == [True, False]  # u ordered, sigma_u tied
+
+
+def test_near_paper_uses_the_tables_values_both_ways(tmp_path):
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "within 2x of the paper"}]))
+    ok = evaluate(exp, planted({(B, "u"): [0.1, 0.1]}))[0]  # the tiny table's paper value for liu_eps0.2/u is 0.09
+    assert ok.holds and ok.checks[0].statistic == pytest.approx(0.1 / 0.09)
+    assert not evaluate(exp, planted({(B, "u"): [0.2, 0.2]}))[0].holds
+    assert not evaluate(exp, planted({(B, "u"): [0.04, 0.04]}))[0].holds
+
+
+def test_multi_scenario_claims_check_where_their_variants_run():
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    rows = []
+    for scen, present in (("S1", ("rise", "srise", "cdo_srise")), ("S3", ("cdo_srise",))):
+        for v in present:
+            for seed in range(2):
+                rows.append(("t", scen, v, seed, "depth", "rmse", {"rise": 3.0, "srise": 2.0, "cdo_srise": 1.0}[v], "ok"))
+                rows.append(("t", scen, v, seed, "depth", "recovery", 1.5 + seed, "ok"))
+    metrics = pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+    order = next(r for r in evaluate(exp, metrics) if r.claim.kind == "order")
+    assert order.holds and {c.scenario for c in order.checks} == {"S1"}  # S3 runs CDO-S+RISE alone
+    recovery = next(r for r in evaluate(exp, metrics) if r.claim.kind == "at_most")
+    assert {c.scenario for c in recovery.checks} == {"S3"} and recovery.checks[0].statistic == 2.5
+    assert not recovery.holds  # seed 1 takes 2.5 s > 2 s
+
+
+def test_bootstrap_interval_covers_the_ratio_and_needs_two_seeds():
+    rng = np.random.default_rng(3)
+    a, b = 1 + 0.1 * rng.standard_normal(30), 2 + 0.1 * rng.standard_normal(30)
+    lo, hi = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
+    assert lo < a.mean() / b.mean() < hi and hi - lo < 0.05
+    assert bootstrap_ci([a[:1], b[:1]], lambda x, y: x.mean() / y.mean()) is None
+
+
+@pytest.mark.parametrize(("claim", "message"), [
+    ({"kind": "less", "a": "nope", "b": B, "text": "x"}, "claims.0: unknown variants ['nope']"),
+    ({"kind": "less", "a": A, "b": B, "signals": ["depth"], "text": "x"}, "claims.0: signals ['depth'] are not recorded"),
+    ({"kind": "less", "a": A, "b": B, "metric": "rmse", "text": "x"}, "claims.0: metric 'rmse' is not among"),
+    ({"kind": "within", "variants": [A, B], "text": "x"}, "exactly one of 'factor' or 'rtol'"),
+])
+def test_bad_claims_are_config_errors(tmp_path, claim, message):
+    res = runner.invoke(app, ["validate", str(tiny_with_claims(tmp_path, [claim]))])
+    assert res.exit_code == 2 and message in res.output, res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_run_writes_claims_and_require_claims_gates(tmp_path):
+    """A claim that holds and one that cannot (a below itself): claims.md, manifest, summary line, exit codes."""
+    cfg = tiny_with_claims(tmp_path, [
+        {"kind": "less", "a": A, "b": B, "factor": 100, "signals": ["u"], "text": "holds"},
+        {"kind": "less", "a": A, "b": A, "signals": ["u"], "text": "cannot hold"},
+    ])
+    res = runner.invoke(app, ["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    out = tmp_path / "out" / "tiny"
+    text = (out / "claims.md").read_text()
+    assert "**1 of 2 claims hold.**" in text and "| 2 | **fails** | cannot hold |" in text
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert [c["holds"] for c in manifest["claims"]] == [True, False]
+    gated = runner.invoke(app, ["run", str(cfg), "--out", str(tmp_path / "out2"), "--require-claims"])
+    assert gated.exit_code == 1 and "1 claim(s) fail" in gated.output
+    assert "1 of 2 claims hold" in gated.output and (tmp_path / "out2" / "tiny" / "claims.md").exists()
