@@ -1,6 +1,6 @@
 """marinebench command line: thin layer over config loading, the runner and the writers.
 
-Exit codes: 0 success, 1 failure of a check (``compare``; ``run --require-claims``), 2 unusable input
+Exit codes: 0 success, 1 failure of a check (``compare``; ``--require-claims``), 2 unusable input
 (config errors, infeasible designs, a step too large for the observer gains).
 """
 
@@ -180,6 +180,8 @@ def sweep(
                                              "scheduler address (tcp://host:8786); needs the 'dask' extra")] = None,
     workers: Annotated[int | None, typer.Option(min=1, help="workers of --dask local (default: one per core)")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
+                                                 "after everything is written")] = False,
 ) -> None:
     """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
 
@@ -192,11 +194,14 @@ def sweep(
     from marinebench.experiments.sweep import (
         discard_partial,
         run_chunked,
+        sweep_claims,
         sweep_experiment,
         sweep_figure,
         sweep_name,
         sweep_table,
     )
+    from marinebench.results.claims import manifest_entries, summary_line
+    from marinebench.results.claims import markdown as claims_markdown
     from marinebench.results.outputs import model_assumptions, resolved_yaml
     from marinebench.results.writer import atomic_directory, manifest
 
@@ -229,10 +234,13 @@ def sweep(
     except MarinebenchError as exc:
         fail(str(exc))
     shown = base.sweep.shown
+    claims = sweep_claims(metrics, base.sweep)
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
         (tmp / "table.md").write_text("\n".join(sweep_table(metrics, metric, base.sweep) for metric in shown))
+        if claims:
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
         (tmp / "figures").mkdir()
         sweep_figure(metrics, shown, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
@@ -242,11 +250,17 @@ def sweep(
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
             wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),
-            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions)))
+            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
+            claims=manifest_entries(claims)))
     discard_partial(target)
     if not quiet:
+        checked = f", {summary_line(claims)}" if claims else ""
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
-                  f"({wall:.1f} s of simulation summed over the {ran} batch(es) run) -> {target}", markup=False)
+                  f"({wall:.1f} s of simulation summed over the {ran} batch(es) run){checked} -> {target}", markup=False)
+    failing = sum(not c.holds for c in claims)
+    if require_claims and failing:
+        err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
+        raise typer.Exit(1)
 
 
 @app.command()

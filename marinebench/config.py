@@ -254,6 +254,50 @@ class SweepParam(BaseModel):
         return np.geomspace(lo, hi, n) if self.spacing == "log" else np.linspace(lo, hi, n)
 
 
+class _SweepClaim(BaseModel):
+    """A trend the paper states about a sweep, checked on the curves (mean over seeds) of each group
+    (``claims.md`` of the sweep); ``metric`` defaults to the first tabulated, ``signal`` to every signal."""
+
+    model_config = ConfigDict(extra="forbid")
+    text: str = Field(..., description="the claim, in the paper's words or close to them")
+    source: str = Field("", description="where the paper makes it, e.g. 'Fig. 3'")
+    param: str = Field(..., description="the swept parameter (a name of sweep.params)")
+    metric: str | None = None
+    signal: str | None = None
+    groups: list[str] | None = Field(None, min_length=1, description="the groups it is checked in (default: all)")
+
+
+class ProbeClaim(_SweepClaim):
+    """KPI(at) < factor * KPI(vs) in every group (values interpolated as for ``probes``): "J at k = 0.7 at
+    least 20 % below k = 0" is ``{param: k, at: 0.7, vs: 0, factor: 0.8}``."""
+
+    kind: Literal["probe"] = "probe"
+    at: float
+    vs: float
+    factor: float = Field(1.0, gt=0)
+
+
+class TrendClaim(_SweepClaim):
+    """The KPI grows with the parameter over ``range`` in every group: Spearman rank correlation of the mean
+    curve above ``min_rho`` (``decreasing: true``: below ``-min_rho``)."""
+
+    kind: Literal["trend"] = "trend"
+    range: tuple[float, float]
+    min_rho: float = Field(0.0, ge=0, lt=1)
+    decreasing: bool = False
+
+
+class GroupsClaim(_SweepClaim):
+    """Group ``above``'s mean curve lies above group ``below``'s at every value of the parameter."""
+
+    kind: Literal["groups"] = "groups"
+    above: str
+    below: str
+
+
+SweepClaim = Annotated[ProbeClaim | TrendClaim | GroupsClaim, Field(discriminator="kind")]
+
+
 class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
@@ -272,6 +316,26 @@ class SweepSpec(BaseModel):
     )
     signals: list[str] | None = Field(None, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
+    claims: list[SweepClaim] = Field(default_factory=list, description="the paper's trends, checked on the curves")
+
+    @model_validator(mode="after")
+    def _check_claims(self) -> SweepSpec:
+        for i, c in enumerate(self.claims):
+            where = f"claims.{i}"
+            if c.param not in self.params:
+                raise ValueError(f"{where}: unknown param '{c.param}' (have: {', '.join(self.params)})")
+            lo, hi = self.params[c.param].range
+            values = {"probe": lambda c: [c.at, c.vs], "trend": lambda c: list(c.range), "groups": lambda c: []}[c.kind](c)
+            outside = [v for v in values if not lo <= v <= hi]
+            if outside:
+                raise ValueError(f"{where}: values {outside} outside {c.param}'s range {self.params[c.param].range}")
+            named = [*(c.groups or []), *([c.above, c.below] if c.kind == "groups" else [])]
+            unknown = [g for g in named if g not in self.groups]
+            if unknown:
+                raise ValueError(f"{where}: unknown groups {unknown} (have: {', '.join(self.groups)})")
+            if c.metric is not None and c.metric not in self.shown:
+                raise ValueError(f"{where}: metric '{c.metric}' is not among the sweep's metrics {self.shown}")
+        return self
 
     @property
     def shown(self) -> list[str]:

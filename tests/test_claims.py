@@ -78,9 +78,9 @@ def test_multi_scenario_claims_check_where_their_variants_run():
                 rows.append(("t", scen, v, seed, "depth", "recovery", 1.5 + seed, "ok"))
     metrics = pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
     order = next(r for r in evaluate(exp, metrics) if r.claim.kind == "order")
-    assert order.holds and {c.scenario for c in order.checks} == {"S1"}  # S3 runs CDO-S+RISE alone
+    assert order.holds and {c.where for c in order.checks} == {"S1"}  # S3 runs CDO-S+RISE alone
     recovery = next(r for r in evaluate(exp, metrics) if r.claim.kind == "at_most")
-    assert {c.scenario for c in recovery.checks} == {"S3"} and recovery.checks[0].statistic == 2.5
+    assert {c.where for c in recovery.checks} == {"S3"} and recovery.checks[0].statistic == 2.5
     assert not recovery.holds  # seed 1 takes 2.5 s > 2 s
 
 

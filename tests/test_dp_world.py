@@ -160,6 +160,9 @@ def test_sweep_cli_tiny_grid(tmp_path):
     assert sorted(j[j["param"] == "k"]["param_value"].unique()) == [0.0, 1.0]
     assert (d / "figures" / "sweep.png").exists() and "| k | dgnss |" in (d / "table.md").read_text()
     assert "### J_tot at the probe values" in (d / "table.md").read_text()  # the config's probes (k = 0, 0.7, 1)
+    claims = (d / "claims.md").read_text()  # Fig. 3's trends on k and eps (delta was not swept)
+    assert "J_tot at k = 0.7 at least 20 % below k = 0" in claims and "reset time" not in claims
+    assert "| dualband / dgnss | z |" in claims
     mc = CliRunner().invoke(app, ["sweep", "k", "--config", str(cfg), "--n", "2", "--horizon", "20", "--gnss", "dgnss",
                                   "--seeds", "2", "--out", str(tmp_path), "--quiet"])
     assert mc.exit_code == 0, mc.output

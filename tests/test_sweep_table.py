@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from marinebench.config import SweepParam, SweepSpec
-from marinebench.experiments.sweep import sweep_table
+from marinebench.experiments.sweep import sweep_claims, sweep_table
 
 
 def synthetic(seeds=(0, 1)) -> pd.DataFrame:
@@ -74,3 +74,29 @@ def test_other_observers_sweep_the_same_way(tmp_path):
     assert sorted(std["param_value"].unique()) == [0.2, 5.0] and {"u", "v", "sigma_u", "sigma_v"} <= set(std["signal"])
     table = (d / "table.md").read_text()
     assert row(table, "delta_p1", "default", "sigma_u", "1.2")[4] != "–" and (d / "figures" / "sweep.png").exists()
+
+
+def test_sweep_claims_on_known_curves():
+    """k: J falls to 62.5 % at k = 0.75; delta: J rises; group b is twice a everywhere."""
+    claims = [
+        {"kind": "probe", "param": "k", "at": 0.75, "vs": 0.0, "factor": 0.8, "text": "k gain > 20 %"},
+        {"kind": "probe", "param": "k", "at": 0.75, "vs": 0.0, "factor": 0.6, "text": "k gain > 40 %"},
+        {"kind": "trend", "param": "delta", "range": (1.0, 10.0), "text": "grows"},
+        {"kind": "trend", "param": "delta", "range": (1.0, 10.0), "decreasing": True, "text": "falls"},
+        {"kind": "groups", "param": "k", "above": "b", "below": "a", "text": "b above a"},
+        {"kind": "groups", "param": "k", "above": "a", "below": "b", "text": "a above b"},
+        {"kind": "probe", "param": "k", "at": 0.75, "vs": 0.0, "groups": ["b"], "text": "only b"},
+    ]
+    spec = SPEC.model_copy(update={"groups": {"a": {}, "b": {}}})
+    spec = SweepSpec.model_validate({**spec.model_dump(), "claims": claims})
+    res = sweep_claims(synthetic(), spec)
+    assert [r.holds for r in res] == [True, False, True, False, True, False, True]
+    assert res[0].checks[0].statistic == pytest.approx(0.625) and res[2].checks[0].statistic == pytest.approx(1.0)
+    assert res[4].checks[0].statistic == pytest.approx(2.0) and [c.where for c in res[6].checks] == ["b"]
+    only_a = synthetic()[lambda d: d["gnss"] == "a"]
+    # with one group swept, the groups claims and the claim about group b alone are not checked
+    assert [r.claim.text for r in sweep_claims(only_a, spec)] == ["k gain > 20 %", "k gain > 40 %", "grows", "falls"]
+    with pytest.raises(ValueError, match="unknown groups"):
+        SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[4], "above": "c"}]})
+    with pytest.raises(ValueError, match="outside k's range"):
+        SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[0], "at": 2.0}]})

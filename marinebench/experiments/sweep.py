@@ -20,9 +20,10 @@ import pandas as pd
 from pydantic import ValidationError
 from scipy.stats import spearmanr
 
-from marinebench.config import Experiment, SweepSpec, Variant
+from marinebench.config import Experiment, GroupsClaim, ProbeClaim, SweepSpec, TrendClaim, Variant
 from marinebench.errors import ClusterError, ConfigError
 from marinebench.metrics.stats import mean_ci
+from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
 
 def sweep_name(base: str, seeds: int) -> str:
@@ -194,6 +195,69 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
                     lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | "
                                  f"{r.idxmax():.4g} |")
     return "\n".join(lines) + "\n"
+
+
+def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
+    """Check the sweep's claims on each group's curves; claims about a parameter not swept this time are left out."""
+    results = []
+    for claim in spec.claims:
+        if claim.param not in set(metrics["param"]):
+            continue
+        metric = claim.metric or spec.shown[0]
+        curves = {(g, sig): c for (p, g, sig), c in _per_seed_curves(
+            metrics, metric, [claim.signal] if claim.signal else spec.signals).items() if p == claim.param}
+        log = spec.params[claim.param].spacing == "log"
+        res = ClaimResult(claim, metric)
+        if isinstance(claim, GroupsClaim):
+            for sig in dict.fromkeys(sig for _, sig in curves):
+                if (claim.above, sig) in curves and (claim.below, sig) in curves:
+                    res.checks.append(_groups_check(claim, curves[claim.above, sig], curves[claim.below, sig], sig))
+        else:
+            for (g, sig), c in curves.items():
+                if claim.groups is None or g in claim.groups:
+                    check = _probe_check if isinstance(claim, ProbeClaim) else _trend_check
+                    res.checks.append(check(claim, c, log, g, sig))
+        if res.checks:  # e.g. a groups claim when only one group was swept: not checked this time
+            results.append(res)
+    return results
+
+
+def _probe_check(claim: ProbeClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
+    at, vs = _at(c, claim.at, log), _at(c, claim.vs, log)
+    ratio = float(np.nanmean(at) / np.nanmean(vs))
+    ci = bootstrap_ci([at, vs], lambda x, y: np.nanmean(x) / np.nanmean(y))
+    means = {f"{claim.param}={claim.at:g}": float(np.nanmean(at)), f"{claim.param}={claim.vs:g}": float(np.nanmean(vs))}
+    return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", bool(ratio < claim.factor))
+
+
+def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
+    x = c.index.to_numpy(dtype=float)
+    inside = (x >= claim.range[0]) & (x <= claim.range[1])
+
+    def rho(per_seed: np.ndarray) -> float:  # rows: seeds, columns: the points inside the range
+        return float(spearmanr(x[inside], np.nanmean(per_seed, axis=0)).statistic) if inside.sum() > 2 else np.nan
+
+    values = c.to_numpy(dtype=float).T[:, inside]
+    r = rho(values)
+    sign = -1.0 if claim.decreasing else 1.0
+    means = {f"{claim.param}={v:g}": float(np.nanmean(_at(c, v, log))) for v in claim.range}
+    needs = f"{'<' if claim.decreasing else '>'} {sign * claim.min_rho:+g} (Spearman ρ)"
+    return Check(group, sig, means, r, bootstrap_ci([values], rho), needs, bool(sign * r > claim.min_rho))
+
+
+def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, sig: str) -> Check:
+    seeds = above.columns.intersection(below.columns)
+    a, b = above[seeds].to_numpy(dtype=float).T, below[seeds].to_numpy(dtype=float).T  # rows: seeds
+
+    def lowest(x: np.ndarray, y: np.ndarray) -> float:
+        return float(np.nanmin(np.nanmean(x, axis=0) / np.nanmean(y, axis=0)))
+
+    ratio = lowest(a, b)
+    at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
+    means = {f"{claim.above} at {claim.param}={at:.3g}": float(above.loc[at].mean()),
+             f"{claim.below}": float(below.loc[at].mean())}
+    return Check(f"{claim.above} / {claim.below}", sig, means, ratio, bootstrap_ci([a, b], lowest),
+                 "> 1 at every value", bool(ratio > 1))
 
 
 def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:

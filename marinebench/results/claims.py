@@ -21,9 +21,9 @@ from marinebench.config import Experiment, LessClaim, NearPaperClaim, OrderClaim
 
 @dataclass
 class Check:
-    """One scenario and signal of a claim."""
+    """One scenario (or sweep group) and signal of a claim."""
 
-    scenario: str
+    where: str
     signal: str
     means: dict[str, float]
     statistic: float
@@ -158,27 +158,28 @@ def summary_line(results: list[ClaimResult]) -> str:
     return f"{sum(r.holds for r in results)} of {len(results)} claims hold"
 
 
-def markdown(exp: Experiment, results: list[ClaimResult]) -> str:
-    """``claims.md``: the verdict per claim, then every check with its numbers."""
-    title = exp.table.title if exp.table is not None else exp.name
+def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario", title: str | None = None) -> str:
+    """``claims.md``: the verdict per claim, then every check with its numbers (``where``: the heading of
+    the column of scenarios, or of groups for a sweep)."""
+    title = title or (exp.table.title if exp.table is not None else exp.name)
     lines = [f"## Claims checked: {title}", "",
-             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per scenario and signal. The "
-             "statistic is the ratio of means the claim is about (for `≤ value` claims the largest value over "
-             "seeds), with a 95% bootstrap interval over seeds (the same seeds resampled for every variant). "
-             "A claim holds when every check holds on the means."), "",
+             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per {where} and signal. The "
+             "statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
+             "Spearman's ρ for trends), with a 95% bootstrap interval over seeds (the same seeds resampled for every "
+             "variant). A claim holds when every check holds on the means."), "",
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         verdict = "holds" if r.holds else "**fails**"
         lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric} |")
-    lines += ["", "| # | scenario | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
+    lines += ["", f"| # | {where} | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         if not r.checks:
             lines.append(f"| {i} | – | – | no data | – | – | **fails** |")
         for c in r.checks:
             means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
             stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
-            lines.append(f"| {i} | {c.scenario} | {c.signal} | {means} | {stat} | {c.needs} | "
+            lines.append(f"| {i} | {c.where} | {c.signal} | {means} | {stat} | {c.needs} | "
                          f"{'holds' if c.holds else '**fails**'} |")
     return "\n".join(lines) + "\n"
 
