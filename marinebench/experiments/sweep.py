@@ -20,7 +20,8 @@ import pandas as pd
 from pydantic import ValidationError
 from scipy.stats import spearmanr
 
-from marinebench.config import Experiment, GroupsClaim, ProbeClaim, SweepSpec, TrendClaim, Variant
+from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
+from marinebench.config import Experiment, SweepSpec, Variant
 from marinebench.errors import ClusterError, ConfigError
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from marinebench.config import Experiment, LessClaim, NearPaperClaim, OrderClaim, WithinClaim
+from marinebench.claims import LessClaim, NearPaperClaim, OrderClaim, WithinClaim
+from marinebench.config import Experiment
 
 
 @dataclass
