@@ -66,7 +66,7 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
     warning = f"warning: {exp.name}: {n_div} metric values from diverged runs excluded" if n_div else None
     checked = f", {summary_line(claims)}" if claims else ""
     line = f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s{checked} -> {target}"
-    return line, warning, sum(not c.holds for c in claims)
+    return line, warning, sum(c.fails for c in claims)
 
 
 def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, str | None, int, str | None]:
@@ -257,7 +257,7 @@ def sweep(
         checked = f", {summary_line(claims)}" if claims else ""
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
                   f"({wall:.1f} s of simulation summed over the {ran} batch(es) run){checked} -> {target}", markup=False)
-    failing = sum(not c.holds for c in claims)
+    failing = sum(c.fails for c in claims)
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
@@ -395,7 +395,10 @@ def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="e
             if is_scenario_file(f):
                 load_scenario(f)
             else:
-                _load(f, [], None, None)
+                exp, _ = _load(f, [], None, None)
+                for i, claim in enumerate(exp.claims):
+                    if (problem := exp.claim_problem(claim)) is not None:
+                        err.print(f"warning: {f}: claims.{i} cannot be checked: {problem}", markup=False)
         except MarinebenchError as exc:
             fail(str(exc))
         out.print(f"{f}: ok", markup=False)

@@ -344,10 +344,8 @@ class Experiment(BaseModel):
             raise ValueError("give exactly one of 'scenario' or 'scenarios'")
         self._fill_signals()
         if self.scenarios is not None:
-            self._check_study()
-        else:
-            self._check_single()
-        return self._check_claims()
+            return self._check_study()
+        return self._check_single()
 
     def claim_metric(self, claim) -> str | None:
         if claim.metric is not None or self.table is None:
@@ -365,28 +363,27 @@ class Experiment(BaseModel):
             return None
         return ["z"] if m.kind == "j_tot" else list(m.signals or [])
 
-    def _check_claims(self) -> Experiment:
-        names = {v.name for v in self.variants}
-        for i, c in enumerate(self.claims):
-            where = f"claims.{i}"
-            unknown = [n for n in c.variant_names if n not in names]
-            if unknown:
-                raise ValueError(f"{where}: unknown variants {unknown}")
-            metric = self.claim_metric(c)
-            if metric is None:
-                raise ValueError(f"{where}: give a 'metric' (there is no table to take it from)")
-            recorded = self.metric_signals(metric)
-            if recorded is None:
-                raise ValueError(f"{where}: metric '{metric}' is not among metrics {[m.label for m in self.metrics]}")
-            signals = self.claim_signals(c)
-            missing = [s for s in signals if s not in recorded]
-            if not signals or missing:
-                raise ValueError(f"{where}: signals {missing or signals} are not recorded by metric '{metric}'")
-            if c.scenarios is not None and not set(c.scenarios) <= set(self.scenario_names):
-                raise ValueError(f"{where}: unknown scenarios {sorted(set(c.scenarios) - set(self.scenario_names))}")
-            if c.kind == "near_paper" and (self.table is None or self.table.paper is None):
-                raise ValueError(f"{where}: near_paper needs the table's paper values")
-        return self
+    def claim_problem(self, claim) -> str | None:
+        """Why a claim cannot be checked on this experiment (None: it can). Not a config error: overrides
+        (``--set``) may drop a variant or metric a claim names; ``claims.md`` and ``validate`` report it."""
+        unknown = [n for n in claim.variant_names if n not in {v.name for v in self.variants}]
+        if unknown:
+            return f"unknown variants {unknown}"
+        metric = self.claim_metric(claim)
+        if metric is None:
+            return "no metric (give one; there is no table to take it from)"
+        recorded = self.metric_signals(metric)
+        if recorded is None:
+            return f"metric '{metric}' is not among metrics {[m.label for m in self.metrics]}"
+        signals = self.claim_signals(claim)
+        missing = [s for s in signals if s not in recorded]
+        if not signals or missing:
+            return f"signals {missing or signals} are not recorded by metric '{metric}'"
+        if claim.scenarios is not None and not set(claim.scenarios) <= set(self.scenario_names):
+            return f"unknown scenarios {sorted(set(claim.scenarios) - set(self.scenario_names))}"
+        if claim.kind == "near_paper" and (self.table is None or self.table.paper is None):
+            return "near_paper needs the table's paper values"
+        return None
 
     def _fill_signals(self) -> None:
         """Default signals of error metrics and the table from the scenario kind (written out in the resolved config)."""

@@ -36,12 +36,17 @@ class Check:
 @dataclass
 class ClaimResult:
     claim: object
-    metric: str
+    metric: str | None
     checks: list[Check] = field(default_factory=list)
+    not_checked: str | None = None  # why the claim could not be checked on this experiment
 
     @property
     def holds(self) -> bool:
-        return bool(self.checks) and all(c.holds for c in self.checks)
+        return self.not_checked is None and bool(self.checks) and all(c.holds for c in self.checks)
+
+    @property
+    def fails(self) -> bool:
+        return self.not_checked is None and not self.holds
 
 
 def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, metric: str) -> pd.Series:
@@ -90,7 +95,10 @@ def evaluate(exp: Experiment, metrics: pd.DataFrame) -> list[ClaimResult]:
     results = []
     for claim in exp.claims:
         metric = exp.claim_metric(claim)
-        res = ClaimResult(claim, metric)
+        res = ClaimResult(claim, metric, not_checked=exp.claim_problem(claim))
+        if res.not_checked is not None:
+            results.append(res)
+            continue
         if isinstance(claim, NearPaperClaim):
             variants = claim.variants or [v.name for v in exp.variants if v.name in exp.table.paper.values]
         else:
@@ -156,7 +164,8 @@ def _num(x: float) -> str:
 
 
 def summary_line(results: list[ClaimResult]) -> str:
-    return f"{sum(r.holds for r in results)} of {len(results)} claims hold"
+    skipped = sum(r.not_checked is not None for r in results)
+    return f"{sum(r.holds for r in results)} of {len(results)} claims hold" + (f", {skipped} not checked" if skipped else "")
 
 
 def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario", title: str | None = None) -> str:
@@ -171,11 +180,11 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
-        verdict = "holds" if r.holds else "**fails**"
-        lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric} |")
+        verdict = "holds" if r.holds else "**fails**" if r.fails else f"not checked: {r.not_checked}"
+        lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric or '–'} |")
     lines += ["", f"| # | {where} | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
-        if not r.checks:
+        if not r.checks and r.not_checked is None:
             lines.append(f"| {i} | – | – | no data | – | – | **fails** |")
         for c in r.checks:
             means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
@@ -186,4 +195,5 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
 
 
 def manifest_entries(results: list[ClaimResult]) -> list[dict]:
-    return [{"text": r.claim.text, "source": r.claim.source, "holds": r.holds} for r in results]
+    return [{"text": r.claim.text, "source": r.claim.source, "holds": r.holds}
+            | ({"not_checked": r.not_checked} if r.not_checked else {}) for r in results]
