@@ -110,6 +110,21 @@ def test_result_sets_with_nothing_in_common_are_refused(tmp_path, base_values):
     assert len(res.output.strip().splitlines()) == 1
 
 
+def test_a_claim_that_no_longer_holds_is_worse(tmp_path, base_values):
+    """Claims come from the manifests: held -> fails is worse, fails -> holds better, a dropped one missing."""
+    def claims(d, verdicts):
+        (d / "manifest.json").write_text(json.dumps({"claims": [
+            {"text": t, "source": "", "holds": h} for t, h in verdicts.items()]}))
+    claims(write_result(tmp_path / "base", "exp", base_values), {"a < b": True, "b < a": False, "gone": True})
+    claims(write_result(tmp_path / "cand", "exp", base_values), {"a < b": False, "b < a": True})
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 1 and res.output.startswith("### marinebench compare: 1 worse, 1 better, 4 same, 1 missing")
+    assert "| **WORSE** | exp | – | – | a < b | claim | holds | fails |" in res.output
+    assert "| **better** | exp | – | – | b < a | claim | fails | holds |" in res.output
+    only_cells = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--metric", "std"])
+    assert only_cells.exit_code == 0 and "claim" not in only_cells.output
+
+
 def test_newly_diverged_run_is_worse(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})

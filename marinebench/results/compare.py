@@ -9,12 +9,14 @@ change, and a verdict:
   tolerance alone decides); direction from :data:`HIGHER_IS_BETTER` (lower is better by default);
 - ``missing``: in the baseline only; ``new``: in the candidate only.
 
-A run that diverged in the candidate but not in the baseline is ``worse``. Two result sets with no cell
+A run that diverged in the candidate but not in the baseline is ``worse``, and so is a claim of the paper
+(``claims.md``, listed in the manifest) that held in the baseline and fails in the candidate. Two result sets with no cell
 in common are refused (:func:`require_pairs`): a gate that pairs nothing must not pass.
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -178,11 +180,44 @@ def require_pairs(table: pd.DataFrame) -> None:
                                "signal, metric): are these the right directories?")
 
 
+def load_claims(dirs: dict[str, Path]) -> dict[tuple[str, str], bool]:
+    """(experiment, claim text) -> holds, from the manifests (claims that could not be checked left out)."""
+    out = {}
+    for name, d in dirs.items():
+        manifest = d / "manifest.json"
+        doc = json.loads(manifest.read_text()) if manifest.exists() else {}
+        for c in doc.get("claims", []):
+            if not c.get("not_checked"):
+                out[name, c["text"]] = bool(c["holds"])
+    return out
+
+
+def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str], bool]) -> pd.DataFrame:
+    """A row per claim (metric ``claim``, the text as signal, 1 = holds): ``worse`` when a claim that held no
+    longer does, ``better`` the other way; ``missing``/``new`` as for cells."""
+    rows = []
+    for key in sorted(set(base) | set(cand)):
+        b, c = base.get(key), cand.get(key)
+        verdict = ("missing" if c is None else "new" if b is None else "same" if b == c else "worse" if b else "better")
+        rows.append({"experiment": key[0], "scenario": "–", "variant": "–", "signal": key[1], "metric": "claim",
+                     "baseline": np.nan if b is None else float(b), "candidate": np.nan if c is None else float(c),
+                     "change": np.nan, "rel_change": np.nan, "ci_low": np.nan, "ci_high": np.nan, "n": 0,
+                     "verdict": verdict})
+    return pd.DataFrame(rows, columns=KEYS + ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "verdict"])
+
+
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
+    """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
+    most severe first."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
     check_compatible(bdirs, cdirs)
     table = compare_frames(load_metrics(bdirs, metrics), load_metrics(cdirs, metrics), tol)
     require_pairs(table)
+    if metrics is None or "claim" in metrics:
+        claims = compare_claims(load_claims(bdirs), load_claims(cdirs))
+        if len(claims):
+            table = pd.concat([table, claims], ignore_index=True)
+            table = table.iloc[table["verdict"].map(SEVERITY).argsort(kind="stable")].reset_index(drop=True)
     return table
 
 
@@ -224,6 +259,11 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
     lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
     icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
     for r in shown.itertuples(index=False):
+        if r.metric == "claim":  # a claim of the paper (claims.md): holds or fails on each side
+            held = {1.0: "holds", 0.0: "fails"}
+            lines.append(f"| {icons[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | "
+                         f"{held.get(r.baseline, '–')} | {held.get(r.candidate, '–')} | – | – | – |")
+            continue
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
         if np.isnan(r.ci_low):
             ci = "–"
