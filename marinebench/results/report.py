@@ -77,12 +77,30 @@ def _manifest_html(d: Path) -> str:
             f"<p>Assumptions:</p><ul>{assumptions}</ul></div>")
 
 
+def claims_overview(dirs: dict[str, Path]) -> str:
+    """A markdown table of the claims of every result directory (from the manifests): how many hold."""
+    rows = []
+    for name, d in dirs.items():
+        path = d / "manifest.json"
+        claims = json.loads(path.read_text()).get("claims", []) if path.exists() else []
+        if claims:
+            failing = [c["text"] for c in claims if not c["holds"] and not c.get("not_checked")]
+            rows.append(f"| {name} | {sum(c['holds'] for c in claims)} of {len(claims)} | "
+                        + "; ".join(failing).replace("|", "/") + " |")
+    if not rows:
+        return ""
+    return "\n".join(["## The papers' claims", "", "Checked on our runs (each experiment's claims.md below).", "",
+                      "| experiment | hold | failing |", "|---|---|---|", *rows]) + "\n"
+
+
 def render_report(results: Path, compare_with: Path | None = None) -> str:
     dirs = find_results(results)
     parts = [f"<h1>marinebench report: {html.escape(str(results))}</h1>",
              ("<p>Tables show our results (mean and 95% CI over seeds) beside the papers' published values, which "
              "are in columns labelled <i>paper</i> and are copied, not computed.</p>")]
     parts.append("<ul>" + "".join(f'<li><a href="#{n}">{html.escape(n)}</a></li>' for n in dirs) + "</ul>")
+    if overview := claims_overview(dirs):
+        parts.append(markdown_to_html(overview))
     if compare_with is not None:
         table = compare_dirs(compare_with, results)
         parts.append(f"<h2 id='comparison'>Comparison with {html.escape(str(compare_with))}</h2>")
