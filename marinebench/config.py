@@ -109,6 +109,11 @@ class JTotMetric(BaseModel):
     def label(self) -> str:
         return self.name
 
+    @property
+    def signals(self) -> list[str]:
+        """The one signal the KPI is recorded under (as the other metrics' ``signals``)."""
+        return ["z"]
+
     def window(self, horizon: float) -> tuple[float, float]:
         start = self.from_fraction * horizon if self.from_fraction is not None else self.t_start
         return start, self.t_end if self.t_end is not None else horizon
@@ -361,7 +366,7 @@ class Experiment(BaseModel):
         m = next((m for m in self.metrics if m.label == label), None)
         if m is None:
             return None
-        return ["z"] if m.kind == "j_tot" else list(m.signals or [])
+        return list(m.signals or [])
 
     def claim_problem(self, claim) -> str | None:
         """Why a claim cannot be checked on this experiment (None: it can). Not a config error: overrides
@@ -401,7 +406,7 @@ class Experiment(BaseModel):
             signals: list[str] = []
             for m in self.metrics:
                 if m.label in listed:
-                    signals += [s for s in (["z"] if m.kind == "j_tot" else m.signals) if s not in signals]
+                    signals += [s for s in m.signals if s not in signals]
             self.table.signals = signals or list(default)
 
     def _check_study(self) -> Experiment:

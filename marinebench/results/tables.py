@@ -102,7 +102,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     if spec is None:
         first = exp.metrics[0]
         names = [first.label]
-        signals = ["z"] if first.kind == "j_tot" else first.signals
+        signals = first.signals
         spec_title, paper = f"{exp.name}: {first.label}", None
     else:
         names, spec_title, signals, paper = spec.metrics or [spec.metric], spec.title, spec.signals, spec.paper
