@@ -101,6 +101,29 @@ def test_markdown_lists_changed_cells_and_counts_the_rest(tmp_path, base_values)
     assert len(every) == 5  # 4 paired cells and the new one
 
 
+def test_an_experiment_on_one_side_only_is_one_row(tmp_path, base_values):
+    """A candidate that ran a subset of the baseline's configs: each absent experiment is one row."""
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "base", "gone", base_values)
+    write_result(tmp_path / "cand", "exp", base_values)
+    args = ["compare", str(tmp_path / "base"), str(tmp_path / "cand")]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0
+    lines = res.output.splitlines()
+    assert lines[0] == "### marinebench compare: 0 worse, 0 better, 4 same, 4 missing (1 whole experiment(s) only in the baseline)"
+    rows = [ln for ln in lines if ln.startswith("| ") and "---" not in ln][1:]
+    assert rows == [("| **missing** | gone | – | – | whole experiment, only in the baseline: 4 cell(s), 0 claim(s) "
+                     "| – | – | – | – | – | – |")]
+    assert lines[-1] == "4 same cell(s) not listed (`--all` lists every cell)."
+    assert runner.invoke(app, [*args, "--strict"]).exit_code == 1  # an experiment the candidate lacks fails strictly
+    every = [ln for ln in runner.invoke(app, [*args, "--all"]).output.splitlines() if ln.startswith("| ")][1:]
+    assert len(every) == 8 and sum("| gone |" in r for r in every) == 4
+    # a variant dropped from an experiment that is still there stays a cell-level row
+    write_result(tmp_path / "cand2", "exp", {k: v for k, v in base_values.items() if k[0] == "a"})
+    partial = runner.invoke(app, ["compare", str(tmp_path / "base" / "exp"), str(tmp_path / "cand2")])
+    assert "whole experiment" not in partial.output and partial.output.count("**missing** | exp | scen | b |") == 2
+
+
 def test_result_sets_with_nothing_in_common_are_refused(tmp_path, base_values):
     """A gate that pairs no cell (a wrong directory) must not pass silently."""
     write_result(tmp_path / "base", "exp", base_values)

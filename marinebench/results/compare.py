@@ -236,7 +236,12 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
 def headline(table: pd.DataFrame) -> str:
     counts = table["verdict"].value_counts()
     parts = [f"{counts.get(v, 0)} {v}" for v in ("worse", "better", "same")]
-    parts += [f"{counts[v]} {v}" for v in ("missing", "new") if counts.get(v, 0)]
+    whole = pd.Series(one_sided_experiments(table), dtype=object).value_counts() if len(table) else {}
+    side = {"missing": "baseline", "new": "candidate"}
+    for v in ("missing", "new"):
+        if counts.get(v, 0):
+            n = int(whole.get(v, 0))
+            parts.append(f"{counts[v]} {v}" + (f" ({n} whole experiment(s) only in the {side[v]})" if n else ""))
     return ", ".join(parts)
 
 
@@ -247,17 +252,35 @@ def _fmt(x) -> str:
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
 
 
+def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
+    """Experiments whose every cell and claim is on one side only -> ``missing`` or ``new``.
+
+    A baseline tree gated against a candidate that ran a subset of the configs (or the other way round)
+    differs by whole experiments; the markdown lists each as one row instead of each of its cells.
+    """
+    per = table.groupby("experiment")["verdict"].agg(lambda v: v.iloc[0] if v.nunique() == 1 else "")
+    return {e: v for e, v in per.items() if v in ("missing", "new")}
+
+
 def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False) -> str:
     """A markdown table of the cells, most severe first (for a PR comment or a CI log).
 
     ``same`` and ``new`` cells are only counted, in a line under the table, unless ``all_cells``: a full
-    reference holds thousands of them, and a gate's reader needs the changed ones.
+    reference holds thousands of them, and a gate's reader needs the changed ones. An experiment present on
+    one side only is one row (``all_cells`` lists its cells).
     """
-    shown = table if all_cells else table[~table["verdict"].isin(QUIET)]
+    whole = {} if all_cells else one_sided_experiments(table)
+    shown = table if all_cells else table[~table["verdict"].isin(QUIET) & ~table["experiment"].isin(list(whole))]
     lines = [f"### {title}: {headline(table)}", ""]
     lines.append("| verdict | experiment | scenario | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
     lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
     icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
+    for name, verdict in sorted(whole.items(), key=lambda kv: (SEVERITY[kv[1]], kv[0])):
+        rows = table[table["experiment"] == name]
+        n_claims = int((rows["metric"] == "claim").sum())
+        side = "baseline" if verdict == "missing" else "candidate"
+        what = f"whole experiment, only in the {side}: {len(rows) - n_claims} cell(s), {n_claims} claim(s)"
+        lines.append(f"| {icons[verdict]} | {name} | – | – | {what} | – | – | – | – | – | – |")
     for r in shown.itertuples(index=False):
         if r.metric == "claim":  # a claim of the paper (claims.md): holds or fails on each side
             held = {1.0: "holds", 0.0: "fails"}
@@ -273,9 +296,9 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
             ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
         lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
                      f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
-    hidden = len(table) - len(shown)
-    if hidden:
-        counts = table["verdict"].value_counts()
+    rest = table[~table["experiment"].isin(list(whole))]
+    if len(rest) > len(shown):
+        counts = rest["verdict"].value_counts()
         what = " and ".join(f"{counts[v]} {v}" for v in QUIET if counts.get(v, 0))
         lines += ["", f"{what} cell(s) not listed (`--all` lists every cell)."]
     return "\n".join(lines) + "\n"
