@@ -81,12 +81,12 @@ def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, 
 @app.command()
 def run(
     configs: Annotated[list[Path], typer.Argument(metavar="CONFIG", help="experiment YAML files")],
-    out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>/ (default results/)")] = None,
-    seed: Annotated[int | None, typer.Option(min=0, help="root seed (overrides the config)")] = None,
-    seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per variant")] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
-    profile: Annotated[str | None, typer.Option(help="apply the config's named profile (e.g. quick)")] = None,
-    jobs: Annotated[int, typer.Option("--jobs", "-j", min=0, help="experiments run at once in separate processes "
+    out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>/ (default results/)")] = None,
+    seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed (overrides the config)")] = None,
+    seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per variant")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")] = None,
+    profile: Annotated[str | None, typer.Option(metavar="NAME", help="apply the config's named profile (e.g. quick)")] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="experiments run at once in separate processes "
                                       "(0: one per core); the numbers do not depend on it")] = 1,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
@@ -166,19 +166,19 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
 @app.command()
 def sweep(
     params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time (from the config's sweep.params)")],
-    config: Annotated[Path, typer.Option(help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
-    n: Annotated[int | None, typer.Option("--n", help="points per parameter (default: the config's)")] = None,
-    gnss: Annotated[str | None, typer.Option(help="comma-separated world groups (default: all)")] = None,
-    horizon: Annotated[float | None, typer.Option(help="simulated time per run [s]")] = None,
-    out_dir: Annotated[Path | None, typer.Option("--out", help="write to DIR/<config stem>_sweep/")] = None,
-    seed: Annotated[int | None, typer.Option(min=0, help="root seed")] = None,
-    seeds: Annotated[int | None, typer.Option(min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
+    config: Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
+    gnss: Annotated[str | None, typer.Option(metavar="GROUPS", help="comma-separated world groups (default: all)")] = None,
+    horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
+    out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep/")] = None,
+    seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,
+    seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", help="override a config field: dotted.key=value")] = None,
-    chunk_size: Annotated[int, typer.Option(help="runs per batch; finished batches survive an interruption")] = 300,
-    dask: Annotated[str | None, typer.Option(help="run the batches on Dask: 'local' (a local cluster) or a "
+    set_: Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")] = None,
+    chunk_size: Annotated[int, typer.Option(metavar="N", help="runs per batch; finished batches survive an interruption")] = 300,
+    dask: Annotated[str | None, typer.Option(metavar="local|ADDRESS", help="run the batches on Dask: 'local' (a local cluster) or a "
                                              "scheduler address (tcp://host:8786); needs the 'dask' extra")] = None,
-    workers: Annotated[int | None, typer.Option(min=1, help="workers of --dask local (default: one per core)")] = None,
+    workers: Annotated[int | None, typer.Option(metavar="N", min=1, help="workers of --dask local (default: one per core)")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
@@ -265,11 +265,11 @@ def sweep(
 
 @app.command()
 def bench(
-    config: Annotated[Path, typer.Option(help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
-    params: Annotated[str, typer.Option(help="comma-separated swept parameters")] = "k,delta,eps",
-    n: Annotated[int | None, typer.Option("--n", help="points per parameter (default: the config's)")] = None,
-    horizon: Annotated[float, typer.Option(min=0.1, help="simulated seconds per run in the benchmark")] = 50.0,
-    runs: Annotated[int, typer.Option(min=1, help="runs timed with the per-run reference loop")] = 3,
+    config: Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    params: Annotated[str, typer.Option(metavar="PARAMS", help="comma-separated swept parameters")] = "k,delta,eps",
+    n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
+    horizon: Annotated[float, typer.Option(metavar="SECONDS", min=0.1, help="simulated seconds per run in the benchmark")] = 50.0,
+    runs: Annotated[int, typer.Option(metavar="N", min=1, help="runs timed with the per-run reference loop")] = 3,
 ) -> None:
     """Time the batched engine against the plain per-run reference on the same runs, in one process."""
     import resource
@@ -321,13 +321,13 @@ def compare(
     baseline: Annotated[Path, typer.Argument(metavar="BASELINE", help="result directory or tree (e.g. results/)")],
     candidate: Annotated[Path | None, typer.Argument(metavar="CANDIDATE", help="result directory or tree to check")] = None,
     variants: Annotated[
-        tuple[str, str] | None, typer.Option(help="compare two variants of BASELINE instead: A B (B vs A)")
+        tuple[str, str] | None, typer.Option(metavar="A B", help="compare two variants of BASELINE instead: A B (B vs A)")
     ] = None,
-    metric: Annotated[list[str] | None, typer.Option(help="only these metrics (repeatable)")] = None,
-    rtol: Annotated[float, typer.Option(help="relative tolerance for 'same'")] = 0.02,
-    atol: Annotated[float, typer.Option(help="absolute tolerance for 'same'")] = 0.0,
+    metric: Annotated[list[str] | None, typer.Option(metavar="NAME", help="only these metrics (repeatable)")] = None,
+    rtol: Annotated[float, typer.Option(metavar="X", help="relative tolerance for 'same'")] = 0.02,
+    atol: Annotated[float, typer.Option(metavar="X", help="absolute tolerance for 'same'")] = 0.0,
     fmt: Annotated[Format, typer.Option("--format", help="output format")] = Format.md,
-    output: Annotated[Path | None, typer.Option(help="write the comparison to FILE")] = None,
+    output: Annotated[Path | None, typer.Option(metavar="FILE", help="write the comparison to FILE")] = None,
     strict: Annotated[bool, typer.Option(help="a baseline cell the candidate lacks (a dropped variant, signal or "
                                          "metric) also fails, as a worse cell does")] = False,
     all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
@@ -370,8 +370,8 @@ def compare(
 @app.command()
 def report(
     results: Annotated[Path, typer.Argument(metavar="RESULTS", help="result directory or tree")],
-    out_file: Annotated[Path, typer.Option("--out", help="HTML file to write")] = Path("report.html"),
-    compare_with: Annotated[Path | None, typer.Option("--compare", help="baseline results to compare against")] = None,
+    out_file: Annotated[Path, typer.Option("--out", metavar="FILE", help="HTML file to write")] = Path("report.html"),
+    compare_with: Annotated[Path | None, typer.Option("--compare", metavar="BASELINE", help="baseline results to compare against")] = None,
 ) -> None:
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
     from marinebench.results.report import render_report
@@ -405,7 +405,7 @@ def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="e
 
 
 @app.command()
-def schema(kind: Annotated[str, typer.Option(help="experiment or scenario")] = "experiment") -> None:
+def schema(kind: Annotated[str, typer.Option(metavar="KIND", help="experiment or scenario")] = "experiment") -> None:
     """Print the JSON Schema of experiment (or scenario) YAML files."""
     from marinebench.config import Experiment
     from marinebench.scenario import Scenario
