@@ -43,6 +43,9 @@ SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
 SIGNALS_OF = {"bejarano": BejaranoObserver.signals, "liu_eso": LiuEsoObserver.signals,
               "npo": DpObserver.signals, "resetting_fto": DpObserver.signals}
 DEFAULT_SIGNALS = {"open_loop_asv": SIGNALS, "dp_supply": DP_SIGNALS, "rov_tracking": ("depth", "yaw")}
+# The signals a world records the truth of, where it is narrower than what observers estimate: the open-loop ASV
+# world has no bias (the DP observers running there are compared on velocity and sigma)
+TRUTH_SIGNALS = {"open_loop_asv": SIGNALS + ("x", "y", "psi")}
 
 
 class Variant(BaseModel):
@@ -397,7 +400,8 @@ class Experiment(BaseModel):
             return
         default = [s for kind in dict.fromkeys(v.observer.kind for v in self.variants if v.observer is not None)
                    for s in SIGNALS_OF.get(kind, ())]
-        default = list(dict.fromkeys(default)) or DEFAULT_SIGNALS[worlds[0].kind]
+        truth = TRUTH_SIGNALS.get(worlds[0].kind)
+        default = [s for s in dict.fromkeys(default) if truth is None or s in truth] or DEFAULT_SIGNALS[worlds[0].kind]
         for m in self.metrics:
             if isinstance(m, ErrorMetric) and m.signals is None:
                 m.signals = list(default)

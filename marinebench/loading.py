@@ -17,7 +17,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from marinebench.config import DP_SIGNALS, AnyScenario, Experiment
+from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
 from marinebench.errors import ConfigError
 
 
@@ -292,11 +292,15 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
                     checked.add(cdo.model_dump_json())
 
     signals = set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
+    truth = TRUTH_SIGNALS.get(exp.scenario.kind)
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):
             bad = set(m.signals) - signals
             if bad:
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
+            if truth is not None and set(m.signals) - set(truth):
+                raise ConfigError(file, f"metrics.{j}.signals", f"{sorted(set(m.signals) - set(truth))}: an "
+                                  f"{exp.scenario.kind} world has no truth of these (it has {', '.join(truth)})")
         if m.kind == "j_tot" and not set(DP_SIGNALS) <= signals:
             raise ConfigError(file, f"metrics.{j}", "j_tot needs the DP state estimates (pose, bias, velocity), "
                               "which no variant's observer produces (npo and resetting_fto do)")

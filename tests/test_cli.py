@@ -66,9 +66,13 @@ BAD = {
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
-    "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "npo"}),
-                                  ("variants.0.observer.kind: 'npo' does not apply to scenario kind open_loop_asv "
-                                   "(its observers: bejarano, liu_eso)")),
+    "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "cdo"}),
+                                  ("variants.0.observer.kind: 'cdo' does not apply to scenario kind open_loop_asv "
+                                   "(its observers: bejarano, liu_eso, npo, resetting_fto)")),
+    # the DP observers run on the ASV world, but it records no bias truth to compare their bias estimate with
+    "signal_without_truth": (lambda d: (d["variants"][0].update(observer={"kind": "npo"}),
+                                        d["metrics"][0].update(signals=["u", "b_x"])),
+                             "metrics.0.signals: ['b_x']: an open_loop_asv world has no truth of these"),
 }
 
 

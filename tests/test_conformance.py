@@ -25,6 +25,14 @@ STEADY_ASV = {
     "disturbances": {"F_wu": {**CONSTANT, "value": 0.3}, "F_wv": {**CONSTANT, "value": -0.2},
                      "tau_wr": {**CONSTANT, "value": 0.02}},
 }
+# The same vessel going straight (no torque, no environment): the NED bias the DP observers model is then constant
+# once the surge has settled (in a steady turn it would rotate with the heading, which model (41) does not allow).
+STRAIGHT_ASV = {
+    "kind": "open_loop_asv", "name": "straight", "horizon": 120.0, "dt": 0.01,
+    "inputs": {"F_u": {**CONSTANT, "value": 3.0}, "tau_r": {**CONSTANT, "value": 0.0}},
+    "disturbances": {"F_wu": {**CONSTANT, "value": 0.0}, "F_wv": {**CONSTANT, "value": 0.0},
+                     "tau_wr": {**CONSTANT, "value": 0.0}},
+}
 # Torben's sway impulse without waves, sensor errors, notch or model mismatch: the bias is constant after
 # the impulse.
 CLEAN_DP = {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"), "horizon": 600.0, "waves": None,
@@ -41,6 +49,9 @@ DP_UNITS = {"bias_units": "10kN", "moment_arm": "L"}
 CASES = [
     ("liu_eso", STEADY_ASV, [{"eps": 0.1}, {"eps": 0.1, "mode": "fal"}], (0.0, 5.0), (35.0, None)),
     ("bejarano", STEADY_ASV, [{"delta_psi1": 1.0, "delta_p1": 1.0, "k_n": 1}, {}], (0.0, 5.0), (35.0, None)),
+    ("npo", STRAIGHT_ASV, [{"bias_units": "force", "moment_arm": "L"}], (0.0, 10.0), (100.0, None)),
+    ("resetting_fto", STRAIGHT_ASV, [{"bias_units": "force", "moment_arm": "L", "delta": 0.32, "eps": [0.2, 0.2, 0.02]}],
+     (0.0, 10.0), (100.0, None)),
     ("npo", CLEAN_DP, [DP_UNITS], (0.0, 200.0), (550.0, None)),
     ("resetting_fto", CLEAN_DP, [{**DP_UNITS, "q2_scale": 1.0e8}], (0.0, 200.0), (550.0, None)),
     ("liu_eso", CLEAN_DP, [{"eps": 0.2}], (0.0, 200.0), (550.0, None)),

@@ -46,3 +46,21 @@ def test_unforced_vessel_dissipates_kinetic_energy():
         x = x + 0.005 * plant.derivative(x, zero, zero)
     assert np.all(np.diff(energy) < 0)
     assert energy[-1] < 0.05 * energy[0]
+
+
+def test_cs2_linear_dp_model_is_the_zero_speed_linearisation():
+    """The DP observers' design model of CyberShip II: M of eq. (5) and D = d(C(nu)nu + D(nu)nu)/dnu at nu = 0."""
+    from marinebench.design.kalman import kalman_gains
+    from marinebench.models.cybership2 import linear_dp_model
+    from marinebench.models.supply import SupplyVessel, bis_scale
+
+    p = CyberShip2Params()
+    model = SupplyVessel(linear_dp_model(p))
+    np.testing.assert_array_equal(model.M, inertia_matrix(p))
+    h = 1e-10  # the plant's C(nu)nu + D(nu)nu is quadratic around 0: its Jacobian there is the linear damping
+    jac = np.stack([CyberShip2(p).coriolis_damping(h * np.eye(3)[[i]])[0] / h for i in range(3)], axis=1)
+    np.testing.assert_allclose(model.D, jac, rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(bis_scale(model.params)[[0, 3]], [1.255, 23.8 * 9.81])
+    # Torben's Q1, R1 with the bias in N and N x L (configs/cross_asv_table4.yaml): L1 poles in [-1.19, -0.19] rad/s
+    g = kalman_gains(model.M, model.D, np.diag([50.0, 50.0, 10.0]), np.diag([15.0, 15.0, 1.0]), "force", 1.255)
+    assert -1.2 < g.poles.real.min() < -1.18 and -0.2 < g.poles.real.max() < -0.18

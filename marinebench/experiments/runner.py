@@ -17,7 +17,7 @@ import pandas as pd
 from marinebench.config import Experiment
 from marinebench.dp_scenario import DpWorld
 from marinebench.metrics.stats import mean_ci
-from marinebench.models.cybership2 import CyberShip2
+from marinebench.models.cybership2 import CyberShip2, linear_dp_model
 from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
@@ -30,10 +30,11 @@ from marinebench.sim.engine import ObserverGroup, check_step, simulate
 from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral, RecoveryTime, Traces, TruthLog
 
 # Observer kinds per scenario kind. Bejarano's estimator and Liu's ESO need only M^-1 of the vessel and a pose
-# measurement, so they also run on the DP world (against its lumped-disturbance truth); the DP observers need
-# the linear DP model's bias states, which the open-loop ASV world does not define.
+# measurement, so they also run on the DP world (against its lumped-disturbance truth); the DP observers run on
+# the open-loop ASV world with CyberShip II's linear model (41) (``linear_dp_model``) and report the lumped
+# disturbance their model implies (the ASV world has no bias truth).
 OBSERVER_KINDS = {
-    "open_loop_asv": ("bejarano", "liu_eso"),
+    "open_loop_asv": ("bejarano", "liu_eso", "npo", "resetting_fto"),
     "dp_supply": ("npo", "resetting_fto", "bejarano", "liu_eso"),
     "rov_tracking": (),
 }
@@ -62,6 +63,8 @@ def wants_lumped(exp: Experiment) -> bool:
     """Whether a DP experiment needs the lumped-disturbance truth sigma: an observer of sigma runs, or a metric,
     the table or a figure asks for a sigma signal (then the DP observers report the sigma their model implies).
     Torben's experiments ask for neither and do not pay for the extra plant evaluation per step."""
+    if exp.scenario.kind == "open_loop_asv":
+        return True  # its truth is sigma, not a bias: the DP observers must report the sigma they imply
     if exp.scenario.kind != "dp_supply":
         return False
     asked = {s for m in exp.metrics for s in (getattr(m, "signals", None) or ())}
@@ -78,7 +81,8 @@ def make_observer(kind: str, tunings: list, scenario, plant, lumped: bool = Fals
     if kind == "liu_eso":
         return LiuEsoObserver(tunings, plant.Minv)
     if kind in ("npo", "resetting_fto"):
-        return DpObserver(tunings, plant, scenario.dt, bis_scale(plant.params), lumped)
+        model = plant if isinstance(plant, SupplyVessel) else SupplyVessel(linear_dp_model(plant.params))
+        return DpObserver(tunings, model, scenario.dt, bis_scale(model.params), lumped)
     raise KeyError(kind)
 
 
@@ -204,9 +208,10 @@ def _run_single(
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
     n_steps = round(sc.horizon / sc.dt)
     recorders = _recorders(exp, run_variant, run_seed, n_steps)
-    trace_signals = sorted({s for g in groups for s in g.observer.signals})
+    truth0 = world.truth(0.0, world.x0)
+    trace_signals = sorted({s for g in groups for s in g.observer.signals} & set(truth0))  # estimated and true
     if hasattr(world, "estimates"):
-        trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(world.truth(0.0, world.x0)))
+        trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(truth0))
     tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
     if on_start is not None:
         on_start(n_steps)

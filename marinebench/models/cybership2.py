@@ -18,12 +18,15 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from marinebench.models.supply import LinearDpParams
+
 
 class CyberShip2Params(BaseModel):
     """Rigid-body, added-mass and damping coefficients (SI units, Skjetne sign convention)."""
 
     model_config = ConfigDict(extra="forbid")
     kind: Literal["cybership2"] = "cybership2"
+    L: float = Field(1.255, gt=0, description="length [m] (models.md; the bis length of the DP observers' design)")
     m: float = Field(23.8, gt=0, description="mass [kg]")
     I_z: float = Field(1.76, gt=0, description="yaw moment of inertia [kg m^2]")
     x_g: float = Field(0.046, description="CG position along x_b [m] (MSS initCS2 uses 0.0425)")
@@ -59,6 +62,15 @@ def inertia_matrix(p: CyberShip2Params) -> np.ndarray:
             [0.0, p.m * p.x_g - p.N_vdot, p.I_z - p.N_rdot],
         ]
     )
+
+
+def linear_dp_model(p: CyberShip2Params) -> LinearDpParams:
+    """The DP observers' design model (Torben eq. (41)) of CyberShip II: M of eq. (5) and the linear damping
+    at zero speed, ``D = -[[X_u, 0, 0], [0, Y_v, Y_r], [0, N_v, N_r]]``. Coriolis and the nonlinear damping are
+    left out, so the observers' bias absorbs them with the environment forces (as sigma does in eq. (6))."""
+    D = ((-p.X_u, 0.0, 0.0), (0.0, -p.Y_v, -p.Y_r), (0.0, -p.N_v, -p.N_r))
+    M = tuple(tuple(float(x) for x in row) for row in inertia_matrix(p))
+    return LinearDpParams(name="cybership2", L=p.L, m=p.m, M=M, D=D)
 
 
 def rotation(psi: np.ndarray) -> np.ndarray:

@@ -68,12 +68,26 @@ class ShipxSupplyLfParams(BaseModel):
         return M
 
 
+class LinearDpParams(BaseModel):
+    """A linear low-frequency model (41) of any vessel in SI, e.g. the DP observers' design model of CyberShip II."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["linear_dp"] = "linear_dp"
+    name: str = Field("", description="the vessel it was derived from")
+    L: float = Field(..., gt=0, description="length [m] (bis length unit)")
+    m: float = Field(..., gt=0, description="mass [kg] (bis mass unit)")
+    g: float = Field(9.81, gt=0, description="gravity [m/s^2]")
+    M: Mat3 = Field(..., description="mass matrix incl. added mass [kg, kg m, kg m^2]")
+    D: Mat3 = Field(..., description="linear damping [N s/m, N s, N m s]")
+
+
 SupplyParams = Annotated[SupplyVesselParams | ShipxSupplyLfParams, Field(discriminator="kind")]
+DpModelParams = SupplyVesselParams | ShipxSupplyLfParams | LinearDpParams
 
 
-def dimensional_matrices(p: SupplyVesselParams | ShipxSupplyLfParams) -> tuple[np.ndarray, np.ndarray]:
+def dimensional_matrices(p: DpModelParams) -> tuple[np.ndarray, np.ndarray]:
     """(M, D) in SI units."""
-    if p.kind == "supply_shipx_lf":
+    if p.kind != "supply_dp_linear":  # given in SI
         return np.array(p.M, dtype=float), np.array(p.D, dtype=float)
     T = np.diag([1.0, 1.0, p.L])
     M = p.m * T @ np.array(p.M_bis) @ T
@@ -81,7 +95,7 @@ def dimensional_matrices(p: SupplyVesselParams | ShipxSupplyLfParams) -> tuple[n
     return M, D
 
 
-def bis_scale(p: SupplyVesselParams | ShipxSupplyLfParams) -> np.ndarray:
+def bis_scale(p: DpModelParams) -> np.ndarray:
     """Denominators that make z = [eta, b, nu] dimensionless (Norrbin's bis system, models.md 2d)."""
     L, m, g = p.L, p.m, p.g
     return np.array([L, L, 1.0, m * g, m * g, m * g * L, np.sqrt(g * L), np.sqrt(g * L), np.sqrt(g / L)])
@@ -91,7 +105,7 @@ def bis_scale(p: SupplyVesselParams | ShipxSupplyLfParams) -> np.ndarray:
 class SupplyVessel:
     """Batched low-frequency plant; state ``x = [eta(3), nu(3), b(3)]`` with shape ``(B, 9)``."""
 
-    params: SupplyVesselParams | ShipxSupplyLfParams
+    params: DpModelParams
     M: np.ndarray = field(init=False)
     D: np.ndarray = field(init=False)
     Minv: np.ndarray = field(init=False)
