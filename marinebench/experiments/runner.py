@@ -60,9 +60,10 @@ def plant_of(scenario):
 
 
 def wants_lumped(exp: Experiment) -> bool:
-    """Whether a DP experiment needs the lumped-disturbance truth sigma: an observer of sigma runs, or a metric,
-    the table or a figure asks for a sigma signal (then the DP observers report the sigma their model implies).
-    Torben's experiments ask for neither and do not pay for the extra plant evaluation per step."""
+    """Whether the DP observers report the lumped disturbance sigma their model implies (and a DP world records
+    its truth): always on the open-loop ASV world, whose truth is sigma; on a DP world when an observer of sigma
+    runs, or a metric, the table or a figure asks for a sigma signal. Torben's experiments ask for neither and
+    do not pay for the extra plant evaluation per step."""
     if exp.scenario.kind == "open_loop_asv":
         return True  # its truth is sigma, not a bias: the DP observers must report the sigma they imply
     if exp.scenario.kind != "dp_supply":
