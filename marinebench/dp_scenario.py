@@ -207,7 +207,7 @@ class DpWorld:
             amp = component_amplitudes(omega, np.full_like(omega, dw), w.hs, w.tp, gamma)
             amp = amp * np.minimum(1.0, (w0 / omega) ** w.rao_rolloff)  # frequency shape of the motion RAO
             phases = np.array([g.uniform(0, 2 * np.pi, w.n_components) for g in stream_rngs(root_seed, seeds, "waves")])
-            self.wave = (omega, amp, phases[where], np.array(w.rao))
+            self.wave = (omega, amp, phases, where, np.array(w.rao))  # per seed; runs of a seed share its sea
         self.filter_every = self.every if s.hold == "measurement" else 1
         self.interpolate = s.hold == "noise" and s.between_samples == "linear"
         self.gm_next = self.gm  # the next eq. (48) sample, for 'linear' (drawn at each sample instant)
@@ -226,8 +226,8 @@ class DpWorld:
         """eta_WF(t) ``(B, 3)``."""
         if self.wave is None:
             return np.zeros_like(self.y)
-        omega, amp, phases, rao = self.wave
-        zeta = (amp * np.cos(omega * t + phases)).sum(axis=1)  # (B,)
+        omega, amp, phases, where, rao = self.wave
+        zeta = (amp * np.cos(omega * t + phases)).sum(axis=1)[where]  # per seed, then (B,)
         return zeta[:, None] * rao[None, :]
 
     def events(self, t: float) -> np.ndarray:
