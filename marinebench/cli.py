@@ -219,7 +219,8 @@ def sweep(
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
-    target = (out_dir if out_dir is not None else Path("results")) / sweep_name(config.stem, exp.seeds)
+    target = (out_dir if out_dir is not None else Path("results")) / sweep_name(config.stem, exp.seeds, params,
+                                                                                list(base.sweep.params))
     t0 = _time.perf_counter()
     try:
         with dask_client(dask, workers) if dask else nullcontext() as client, Progress(

@@ -27,17 +27,20 @@ from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
 
-def sweep_name(base: str, seeds: int) -> str:
-    """``<base>_sweep``, or ``<base>_sweep_<seeds>seeds`` for a Monte-Carlo sweep (so it keeps its own folder)."""
-    return f"{base}_sweep" + (f"_{seeds}seeds" if seeds > 1 else "")
+def sweep_name(base: str, seeds: int, params: list[str] = (), every: list[str] = ()) -> str:
+    """``<base>_sweep``, with ``_<param>...`` when only some of the config's parameters (``every``) are swept and
+    ``_<seeds>seeds`` for a Monte-Carlo sweep, so that neither replaces the full one-seed sweep's folder
+    (e.g. ``torben_fig3_sweep_eps_20seeds``)."""
+    subset = [p for p in every if p in params] if set(params) < set(every) else []
+    return f"{base}_sweep" + "".join(f"_{p}" for p in subset) + (f"_{seeds}seeds" if seeds > 1 else "")
 
 
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
                      horizon: float | None, file: Path) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
 
-    With more than one seed the experiment (and its output folder) is named ``<name>_sweep_<seeds>seeds``,
-    so a Monte-Carlo sweep does not replace the one-seed sweep."""
+    The experiment (and its output folder) is named by :func:`sweep_name`: a Monte-Carlo sweep or one of some of
+    the parameters does not replace the full one-seed sweep."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
@@ -70,7 +73,8 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                         "tags": {"param": p, "param_value": float(value), "gnss": g}}))
                 except ValidationError as exc:
                     raise ConfigError(file, f"sweep.params.{p}", f"{value:g}: {exc.errors()[0]['msg']}") from None
-    update = {"variants": variants, "figures": [], "table": None, "sweep": None, "name": sweep_name(exp.name, exp.seeds)}
+    update = {"variants": variants, "figures": [], "table": None, "sweep": None,
+              "name": sweep_name(exp.name, exp.seeds, params, list(spec.params))}
     if horizon is not None:
         try:
             exp.check_windows(horizon)
