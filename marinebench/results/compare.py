@@ -17,6 +17,7 @@ in common are refused (:func:`require_pairs`): a gate that pairs nothing must no
 from __future__ import annotations
 
 import json
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -236,12 +237,11 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
 def headline(table: pd.DataFrame) -> str:
     counts = table["verdict"].value_counts()
     parts = [f"{counts.get(v, 0)} {v}" for v in ("worse", "better", "same")]
-    whole = pd.Series(one_sided_experiments(table), dtype=object).value_counts() if len(table) else {}
-    side = {"missing": "baseline", "new": "candidate"}
+    whole = Counter(one_sided_experiments(table).values())
     for v in ("missing", "new"):
         if counts.get(v, 0):
-            n = int(whole.get(v, 0))
-            parts.append(f"{counts[v]} {v}" + (f" ({n} whole experiment(s) only in the {side[v]})" if n else ""))
+            n = whole[v]
+            parts.append(f"{counts[v]} {v}" + (f" ({n} whole experiment(s) only in the {ONLY_IN[v]})" if n else ""))
     return ", ".join(parts)
 
 
@@ -250,6 +250,7 @@ def _fmt(x) -> str:
 
 
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
+ONLY_IN = {"missing": "baseline", "new": "candidate"}  # the side a one-sided cell or experiment is on
 
 
 def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
@@ -278,8 +279,7 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
     for name, verdict in sorted(whole.items(), key=lambda kv: (SEVERITY[kv[1]], kv[0])):
         rows = table[table["experiment"] == name]
         n_claims = int((rows["metric"] == "claim").sum())
-        side = "baseline" if verdict == "missing" else "candidate"
-        what = f"whole experiment, only in the {side}: {len(rows) - n_claims} cell(s), {n_claims} claim(s)"
+        what = f"whole experiment, only in the {ONLY_IN[verdict]}: {len(rows) - n_claims} cell(s), {n_claims} claim(s)"
         lines.append(f"| {icons[verdict]} | {name} | – | – | {what} | – | – | – | – | – | – |")
     for r in shown.itertuples(index=False):
         if r.metric == "claim":  # a claim of the paper (claims.md): holds or fails on each side
