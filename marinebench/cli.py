@@ -170,7 +170,7 @@ def sweep(
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option(metavar="GROUPS", help="comma-separated world groups (default: all)")] = None,
     horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
-    out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep/")] = None,
+    out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep.../ (default: results/)")] = None,
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,
     seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
@@ -197,7 +197,7 @@ def sweep(
         sweep_claims,
         sweep_experiment,
         sweep_figure,
-        sweep_name,
+        sweep_suffix,
         sweep_table,
     )
     from marinebench.results.claims import manifest_entries, summary_line
@@ -219,8 +219,8 @@ def sweep(
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
-    target = (out_dir if out_dir is not None else Path("results")) / sweep_name(config.stem, exp.seeds, params,
-                                                                                list(base.sweep.params))
+    target = (out_dir if out_dir is not None else Path("results")) / (
+        config.stem + sweep_suffix(base, params, gnss.split(",") if gnss else None, n, horizon))
     t0 = _time.perf_counter()
     try:
         with dask_client(dask, workers) if dask else nullcontext() as client, Progress(

@@ -45,10 +45,10 @@ def test_cli_sweep_on_a_local_dask_cluster(tmp_path):
     plain = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "plain")])
     dask = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "dask"), "--dask", "local", "--workers", "1"])
     assert plain.exit_code == 0 and dask.exit_code == 0, plain.output + dask.output
-    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep_k" / "metrics.csv")
-    b = pd.read_csv(tmp_path / "dask" / "torben_fig3_sweep_k" / "metrics.csv")
+    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep_k_dgnss_n2_15s" / "metrics.csv")
+    b = pd.read_csv(tmp_path / "dask" / "torben_fig3_sweep_k_dgnss_n2_15s" / "metrics.csv")
     assert _values(a) == _values(b)
-    assert "dask local cluster, 1 worker" in (tmp_path / "dask" / "torben_fig3_sweep_k" / "manifest.json").read_text()
+    assert "dask local cluster, 1 worker" in (tmp_path / "dask" / "torben_fig3_sweep_k_dgnss_n2_15s" / "manifest.json").read_text()
 
 
 def test_cli_sweep_through_a_scheduler_address(tmp_path):
@@ -59,10 +59,10 @@ def test_cli_sweep_through_a_scheduler_address(tmp_path):
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
         remote = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "remote"), "--dask", cluster.scheduler_address])
     assert plain.exit_code == 0 and remote.exit_code == 0, plain.output + remote.output
-    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep_k" / "metrics.csv")
-    b = pd.read_csv(tmp_path / "remote" / "torben_fig3_sweep_k" / "metrics.csv")
+    a = pd.read_csv(tmp_path / "plain" / "torben_fig3_sweep_k_dgnss_n2_15s" / "metrics.csv")
+    b = pd.read_csv(tmp_path / "remote" / "torben_fig3_sweep_k_dgnss_n2_15s" / "metrics.csv")
     assert _values(a) == _values(b)
-    assert f"dask scheduler {cluster.scheduler_address}" in (tmp_path / "remote" / "torben_fig3_sweep_k" / "manifest.json").read_text()
+    assert f"dask scheduler {cluster.scheduler_address}" in (tmp_path / "remote" / "torben_fig3_sweep_k_dgnss_n2_15s" / "manifest.json").read_text()
 
 
 def test_unreachable_scheduler_is_a_clear_error():

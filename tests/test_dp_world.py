@@ -150,7 +150,7 @@ def test_sweep_cli_tiny_grid(tmp_path):
     res = CliRunner().invoke(app, ["sweep", "k", "eps", "--config", str(cfg), "--n", "2", "--horizon", "20",
                                    "--gnss", "dgnss,dualband", "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
-    d = tmp_path / "torben_fig3_sweep_k_eps"  # a sweep of some of the parameters keeps its own folder
+    d = tmp_path / "torben_fig3_sweep_k_eps_n2_20s"  # a sweep of some parameters, other n and horizon: its own folder
     import pandas as pd
 
     m = pd.read_csv(d / "metrics.csv")
@@ -166,7 +166,7 @@ def test_sweep_cli_tiny_grid(tmp_path):
     mc = CliRunner().invoke(app, ["sweep", "k", "--config", str(cfg), "--n", "2", "--horizon", "20", "--gnss", "dgnss",
                                   "--seeds", "2", "--out", str(tmp_path), "--quiet"])
     assert mc.exit_code == 0, mc.output
-    d2 = tmp_path / "torben_fig3_sweep_k_2seeds"  # a Monte-Carlo sweep does not replace the one-seed sweep
+    d2 = tmp_path / "torben_fig3_sweep_k_dgnss_n2_20s_2seeds"  # nor does a Monte-Carlo sweep of one group
     assert sorted(pd.read_csv(d2 / "metrics.csv")["seed"].unique()) == [0, 1] and (d / "metrics.csv").exists()
     assert "2 runs per point" in (d2 / "table.md").read_text()
     bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])

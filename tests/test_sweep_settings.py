@@ -66,11 +66,11 @@ def test_cli_sweeps_a_rov_observer_setting(tmp_path):
     res = CliRunner().invoke(app, ["sweep", "lmi_decay", "--config", str(OBSERVERS), "--n", "2", "--horizon", "6",
                                    "--seeds", "1", "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
-    m = pd.read_csv(tmp_path / "tijjani_observers_sweep_lmi_decay" / "metrics.csv")
+    m = pd.read_csv(tmp_path / "tijjani_observers_sweep_lmi_decay_n2_6s" / "metrics.csv")
     cdo = m[(m["metric"] == "rmse_each") & (m["signal"] == "depth_cdo")].sort_values("param_value")
     assert cdo["param_value"].tolist() == pytest.approx([0.05, 1.0])
     assert cdo["value"].iloc[0] != cdo["value"].iloc[1]
-    assert (tmp_path / "tijjani_observers_sweep_lmi_decay" / "figures" / "sweep.png").exists()
+    assert (tmp_path / "tijjani_observers_sweep_lmi_decay_n2_6s" / "figures" / "sweep.png").exists()
 
 
 def test_sweep_horizon_shorter_than_a_metric_window_is_one_line(tmp_path):
@@ -82,11 +82,16 @@ def test_sweep_horizon_shorter_than_a_metric_window_is_one_line(tmp_path):
 
 
 def test_sweep_folder_names_keep_subsets_and_monte_carlo_sweeps_apart():
-    """A sweep of some parameters, or with several seeds, must not replace the full one-seed sweep's folder."""
-    from marinebench.experiments.sweep import sweep_name
+    """A sweep of some parameters or groups, with other points, another horizon or several seeds, must not
+    replace the full one-seed sweep's folder; the config's own values add nothing to the name."""
+    from marinebench.experiments.sweep import sweep_suffix
 
+    exp, _ = load_experiment(ROOT / "configs" / "torben_fig3.yaml")
     every = ["k", "delta", "eps"]
-    assert sweep_name("torben_fig3", 1, ["eps", "k", "delta"], every) == "torben_fig3_sweep"  # all, any order
-    assert sweep_name("torben_fig3", 1, ["eps", "k"], every) == "torben_fig3_sweep_k_eps"  # the config's order
-    assert sweep_name("torben_fig3", 20, ["eps"], every) == "torben_fig3_sweep_eps_20seeds"
-    assert sweep_name("torben_fig3", 5, every, every) == "torben_fig3_sweep_5seeds"
+    assert sweep_suffix(exp, ["eps", "k", "delta"]) == "_sweep"  # all, any order
+    assert sweep_suffix(exp, every, ["dualband", "dgnss"], exp.sweep.n, exp.scenario.horizon) == "_sweep"
+    assert sweep_suffix(exp, ["eps", "k"]) == "_sweep_k_eps"  # the config's order
+    assert sweep_suffix(exp, ["k"], ["dgnss"], 21, 200.0) == "_sweep_k_dgnss_n21_200s"
+    many = exp.model_copy(update={"seeds": 20})
+    assert sweep_suffix(many, ["eps"]) == "_sweep_eps_20seeds"
+    assert sweep_suffix(many, every) == "_sweep_20seeds"

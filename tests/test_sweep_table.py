@@ -68,7 +68,7 @@ def test_other_observers_sweep_the_same_way(tmp_path):
     res = CliRunner().invoke(app, ["sweep", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "delta_p1",
                                    "--n", "2", "--horizon", "8", "--seeds", "1", "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
-    d = tmp_path / "bejarano_table4_sweep_delta_p1"
+    d = tmp_path / "bejarano_table4_sweep_delta_p1_n2_8s"
     m = pd.read_csv(d / "metrics.csv")
     std = m[m["metric"] == "std"]
     assert sorted(std["param_value"].unique()) == [0.2, 5.0] and {"u", "v", "sigma_u", "sigma_v"} <= set(std["signal"])

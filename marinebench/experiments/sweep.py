@@ -27,23 +27,37 @@ from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
 
-def sweep_name(base: str, seeds: int, params: list[str] = (), every: list[str] = ()) -> str:
-    """``<base>_sweep``, with ``_<param>...`` when only some of the config's parameters (``every``) are swept and
-    ``_<seeds>seeds`` for a Monte-Carlo sweep, so that neither replaces the full one-seed sweep's folder
-    (e.g. ``torben_fig3_sweep_eps_20seeds``)."""
-    subset = [p for p in every if p in params] if set(params) < set(every) else []
-    return f"{base}_sweep" + "".join(f"_{p}" for p in subset) + (f"_{seeds}seeds" if seeds > 1 else "")
+def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = None, n: int | None = None,
+                 horizon: float | None = None) -> str:
+    """``_sweep`` and what sets this sweep apart from the config's full one-seed sweep, so that none replaces
+    another's folder: the parameters and world groups swept when only some of the config's (in the config's
+    order), ``_n<N>`` for another number of points, ``_<T>s`` for another horizon and ``_<seeds>seeds`` for a
+    Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``). ``exp`` is the
+    config's experiment (its ``sweep`` section and seeds)."""
+    spec = exp.sweep
+    tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
+    if groups and set(groups) < set(spec.groups):
+        tags += [g for g in spec.groups if g in groups]
+    if n is not None and n != spec.n:
+        tags.append(f"n{n}")
+    own = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario.horizon
+    if horizon is not None and horizon != own:
+        tags.append(f"{horizon:g}s")
+    if exp.seeds > 1:
+        tags.append(f"{exp.seeds}seeds")
+    return "_sweep" + "".join(f"_{t}" for t in tags)
 
 
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
                      horizon: float | None, file: Path) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
 
-    The experiment (and its output folder) is named by :func:`sweep_name`: a Monte-Carlo sweep or one of some of
-    the parameters does not replace the full one-seed sweep."""
+    The experiment (and its output folder) is named by :func:`sweep_suffix`: a Monte-Carlo sweep, or one of
+    some of the parameters or groups, with other points or another horizon, does not replace the full sweep."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
+    name = exp.name + sweep_suffix(exp, params, groups, n, horizon)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     unknown = [p for p in params if p not in spec.params]
     if unknown:
@@ -74,7 +88,7 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                 except ValidationError as exc:
                     raise ConfigError(file, f"sweep.params.{p}", f"{value:g}: {exc.errors()[0]['msg']}") from None
     update = {"variants": variants, "figures": [], "table": None, "sweep": None,
-              "name": sweep_name(exp.name, exp.seeds, params, list(spec.params))}
+              "name": name}
     if horizon is not None:
         try:
             exp.check_windows(horizon)
