@@ -407,14 +407,13 @@ def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="e
 
 @app.command()
 def schema(kind: Annotated[str, typer.Option(metavar="KIND", help="experiment or scenario")] = "experiment") -> None:
-    """Print the JSON Schema of experiment (or scenario) YAML files."""
-    from marinebench.config import Experiment
-    from marinebench.scenario import Scenario
+    """Print the JSON Schema of experiment (or scenario) YAML files as written (with from:, scenario paths),
+    for editor completion and checking."""
+    from marinebench.schema import file_schema
 
-    models = {"experiment": Experiment, "scenario": Scenario}
-    if kind not in models:
-        fail(f"--kind: expected one of {sorted(models)}, got '{kind}'")
-    sys.stdout.write(json.dumps(models[kind].model_json_schema(), indent=2) + "\n")
+    if kind not in ("experiment", "scenario"):
+        fail(f"--kind: expected one of ['experiment', 'scenario'], got '{kind}'")
+    sys.stdout.write(json.dumps(file_schema(kind), indent=2) + "\n")
 
 
 @app.command(name="list")

@@ -21,7 +21,18 @@ from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experimen
 from marinebench.errors import ConfigError
 
 
-def _read_yaml(path: Path) -> dict[str, Any]:
+class YamlLoader(yaml.SafeLoader):
+    """``yaml.safe_load`` with YAML 1.2's floats: PyYAML follows YAML 1.1, where ``1e8`` and ``5.0e6`` (no dot
+    or no exponent sign) are strings, while editors and the JSON Schema of ``marinebench schema`` read numbers."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9][0-9_]*)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."))
+
+
+def read_yaml(path: Path) -> dict[str, Any]:
+    """A YAML file's top-level mapping (:class:`YamlLoader`); ConfigError naming the file otherwise."""
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -29,7 +40,7 @@ def _read_yaml(path: Path) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(path, "", f"cannot read ({exc.strerror})") from None
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml.load(text, Loader=YamlLoader)  # YamlLoader is a SafeLoader
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
@@ -76,7 +87,7 @@ def apply_set(doc: dict, assignment: str) -> None:
         raise ConfigError("--set", assignment, "expected dotted.key=value")
     key, raw = assignment.split("=", 1)
     try:
-        value = yaml.safe_load(raw) if raw != "" else ""
+        value = yaml.load(raw, Loader=YamlLoader) if raw != "" else ""  # YamlLoader is a SafeLoader
         parts = _split_path(key.strip())
     except (yaml.YAMLError, ValueError) as exc:
         raise ConfigError("--set", key, str(exc).splitlines()[0]) from None
@@ -120,7 +131,7 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
 
 def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     """A scenario file; ``from: other.yaml`` in it starts from that scenario (relative path) and overrides keys."""
-    doc = _read_yaml(path)
+    doc = read_yaml(path)
     if "from" not in doc:
         return doc
     bpath = _from_path(doc.pop("from"), path, _seen, "scenario")
@@ -158,7 +169,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 
     ``from: other.yaml`` starts from that experiment (its scenario resolved relative to it) and merges this
     file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
-    doc = _read_yaml(path)
+    doc = read_yaml(path)
     base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
     origins[""] = path
     if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
@@ -326,7 +337,7 @@ def load_scenario(path: str | Path):
 def is_scenario_file(path: Path, _depth: int = 0) -> bool:
     """A scenario document has no ``variants`` key, nor does the file its ``from:`` starts from."""
     try:
-        doc = _read_yaml(path)
+        doc = read_yaml(path)
     except ConfigError:
         return False
     if "variants" in doc:

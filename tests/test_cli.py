@@ -114,12 +114,55 @@ def test_validate_all_committed_configs_and_scenarios():
     assert res.output.count(": ok") == len(files)
 
 
-def test_schema_is_json_schema():
-    res = runner.invoke(app, ["schema"])
-    doc = json.loads(res.output)
-    assert res.exit_code == 0 and doc["title"] == "Experiment" and "variants" in doc["properties"]
-    assert json.loads(runner.invoke(app, ["schema", "--kind", "scenario"]).output)["title"] == "Scenario"
+@pytest.mark.parametrize("kind, folder", [("experiment", "configs"), ("scenario", "scenarios")])
+def test_schema_accepts_every_committed_file_as_written_and_flags_typos(kind, folder):
+    """The schema an editor uses must take the files as written (``from:``, scenario paths, partial overrides)
+    and still flag what the loader refuses: an unknown key at any depth, a wrong type, an unknown kind."""
+    import jsonschema
+
+    from marinebench.loading import read_yaml
+
+    res = runner.invoke(app, ["schema", "--kind", kind])
+    assert res.exit_code == 0, res.output
+    schema = json.loads(res.output)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    check = jsonschema.Draft202012Validator(schema)
+    files = sorted((ROOT / folder).glob("*.yaml"))
+    assert len(files) >= 8
+    if kind == "experiment":  # and what `run` writes: a resolved document is a valid file too
+        files += sorted((ROOT / "results").glob("*/config.resolved.yaml"))
+    for f in files:
+        assert not list(check.iter_errors(read_yaml(f))), f
+    derived = {"from": "x.yaml"}  # a file of overrides: every key optional, unknown keys still refused
+    assert check.is_valid(derived) and not check.is_valid({**derived, "horizn": 5})
+    doc = read_yaml(files[0])
+    if kind == "experiment":
+        assert check.is_valid({**doc, "scenario": "../scenarios/cs2_noisy.yaml"})
+        assert check.is_valid({**doc, "scenario": {"from": "../scenarios/cs2_noisy.yaml", "horizon": 10.0}})
+        assert not check.is_valid({**doc, "scenario": {"from": "../scenarios/cs2_noisy.yaml", "horizn": 10.0}})
+        assert not check.is_valid({**doc, "seeds": "five"})
+        bad = {**doc, "variants": [{**doc["variants"][0], "observer": {"kind": "liu_eso", "epsilon": 0.1}}]}
+        assert not check.is_valid(bad)  # a typo inside an observer
+        assert not check.is_valid({**doc, "variants": [{"name": "x", "observer": {"kind": "kalman"}}]})
+        assert not check.is_valid({k: v for k, v in doc.items() if k != "variants"})  # required without from:
+    else:
+        assert not check.is_valid({**doc, "horizon": "long"})
+        assert not check.is_valid({**doc, "sensors": {"position_noise": {"kind": "none", "bound": 1}}})
+        assert check.is_valid({"from": "cs2_noiseless.yaml", "sensors": {"position_noise": {"kind": "none"}}})
     assert runner.invoke(app, ["schema", "--kind", "nope"]).exit_code == 2
+
+
+@pytest.mark.parametrize("kind", ["experiment", "scenario"])
+def test_committed_schemas_are_current_and_every_file_names_its_schema(kind):
+    """schemas/*.schema.json (which the configs' yaml-language-server lines point editors at) are what
+    `marinebench schema` prints now; regenerate them after changing a model."""
+    from marinebench.schema import file_schema
+
+    committed = json.loads((ROOT / "schemas" / f"{kind}.schema.json").read_text())
+    assert committed == file_schema(kind), f"stale: marinebench schema --kind {kind} > schemas/{kind}.schema.json"
+    folder = {"experiment": "configs", "scenario": "scenarios"}[kind]
+    for f in (ROOT / folder).glob("*.yaml"):
+        assert f.read_text().startswith(f"# yaml-language-server: $schema=../schemas/{kind}.schema.json\n"), f
 
 
 def test_list_shows_registered_kinds():

@@ -106,6 +106,11 @@ def test_apply_set_paths():
     assert doc["scenario"]["sensors"] == {"position_noise": {"kind": "none"}} and doc["seeds"] == 3
     with pytest.raises(ConfigError, match="not a valid index"):
         apply_set(doc, "variants.5.name=x")
+    apply_set(doc, "scenario.dt=1e-3")
+    apply_set(doc, "variants.0.observer.eps=5.0e6")  # YAML 1.2 floats, as editors read them (PyYAML: strings)
+    assert doc["scenario"]["dt"] == 1e-3 and doc["variants"][0]["observer"]["eps"] == 5e6
+    apply_set(doc, "variants.0.name=1e5x")
+    assert doc["variants"][0]["name"] == "1e5x"
 
 
 def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
