@@ -14,6 +14,7 @@ from marinebench.controllers.spec import ControllerSpec
 from marinebench.dp_scenario import DpScenario
 from marinebench.observers.bejarano import BejaranoObserver, BejaranoTuning
 from marinebench.observers.cdo import RovObserverSpec
+from marinebench.observers.custom import CustomTuning
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.dp import DpObserver, NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
@@ -21,7 +22,7 @@ from marinebench.rov_scenario import RovScenario
 from marinebench.scenario import Scenario
 
 ObserverTuning = Annotated[
-    BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning | RovObserverSpec, Field(discriminator="kind")
+    BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning | RovObserverSpec | CustomTuning, Field(discriminator="kind")
 ]
 
 
@@ -398,8 +399,8 @@ class Experiment(BaseModel):
         worlds = [self.scenario] if self.scenario is not None else list(self.scenarios.values())
         if not worlds:
             return
-        default = [s for kind in dict.fromkeys(v.observer.kind for v in self.variants if v.observer is not None)
-                   for s in SIGNALS_OF.get(kind, ())]
+        default = [s for v in self.variants if v.observer is not None
+                   for s in (v.observer.estimated_signals() if v.observer.kind == "custom" else SIGNALS_OF.get(v.observer.kind, ()))]
         truth = TRUTH_SIGNALS.get(worlds[0].kind)
         default = [s for s in dict.fromkeys(default) if truth is None or s in truth] or DEFAULT_SIGNALS[worlds[0].kind]
         for m in self.metrics:

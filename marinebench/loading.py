@@ -19,6 +19,7 @@ from pydantic import ValidationError
 
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
 from marinebench.errors import ConfigError
+from marinebench.observers.custom import observer_class, resolve_source
 
 
 class YamlLoader(yaml.SafeLoader):
@@ -171,6 +172,9 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
     doc = read_yaml(path)
     base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
+    for v in doc.get("variants") or []:  # a custom observer's file is relative to the experiment file naming it
+        if isinstance(v, dict) and isinstance(v.get("observer"), dict) and "source" in v["observer"]:
+            v["observer"]["source"] = resolve_source(v["observer"]["source"], path.parent)
     origins[""] = path
     if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
         for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
@@ -196,7 +200,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
 def _loc(loc: tuple) -> str:
     # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
     tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "rov_tracking", "supply_dp_linear", "supply_shipx_lf", "cdo", "eo", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
+            "open_loop_asv", "dp_supply", "rov_tracking", "supply_dp_linear", "supply_shipx_lf", "cdo", "eo", "custom", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
     return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
 
 
@@ -280,10 +284,17 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
         if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
                               f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
+        if v.observer.kind == "custom" and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
+            raise ConfigError(file, f"variants.{i}.observer.source", f"{v.observer.source.rpartition(':')[2]} does not apply "
+                              f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
         try:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0]))
         except DesignError as exc:
             raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+        except Exception as exc:  # a custom observer's constructor refusing its params
+            if v.observer.kind != "custom":
+                raise
+            raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
     from marinebench.rov_scenario import ROV_SIGNALS
 
     if closed_loop:

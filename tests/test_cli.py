@@ -68,7 +68,7 @@ BAD = {
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
     "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "cdo"}),
                                   ("variants.0.observer.kind: 'cdo' does not apply to scenario kind open_loop_asv "
-                                   "(its observers: bejarano, liu_eso, npo, resetting_fto)")),
+                                   "(its observers: bejarano, custom, liu_eso, npo, resetting_fto)")),
     # the DP observers run on the ASV world, but it records no bias truth to compare their bias estimate with
     "signal_without_truth": (lambda d: (d["variants"][0].update(observer={"kind": "npo"}),
                                         d["metrics"][0].update(signals=["u", "b_x"])),
@@ -129,8 +129,8 @@ def test_schema_accepts_every_committed_file_as_written_and_flags_typos(kind, fo
     check = jsonschema.Draft202012Validator(schema)
     files = sorted((ROOT / folder).glob("*.yaml"))
     assert len(files) >= 8
-    if kind == "experiment":  # and what `run` writes: a resolved document is a valid file too
-        files += sorted((ROOT / "results").glob("*/config.resolved.yaml"))
+    if kind == "experiment":  # the examples, and what `run` writes: a resolved document is a valid file too
+        files += sorted((ROOT / "examples").glob("*/*.yaml")) + sorted((ROOT / "results").glob("*/config.resolved.yaml"))
     for f in files:
         assert not list(check.iter_errors(read_yaml(f))), f
     derived = {"from": "x.yaml"}  # a file of overrides: every key optional, unknown keys still refused

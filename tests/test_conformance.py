@@ -43,6 +43,9 @@ CLEAN_ROV = {"from": str(ROOT / "scenarios" / "rov_s1.yaml"), "horizon": 10.0, "
              "sensors": {"depth_noise": 0.0, "yaw_noise_deg": 0.0},
              "depth_ref": [[0, 0.1]], "yaw_ref_deg": [[0, 20.0]]}
 DP_UNITS = {"bias_units": "10kN", "moment_arm": "L"}
+# A custom observer (observers/custom.py): the example class users start from (exact for a disturbance constant in
+# the earth frame, so on the straight run, like the DP observers).
+EARTH_ESO = {"source": f"{ROOT / 'examples' / 'custom_observer' / 'earth_eso.py'}:EarthFrameEso"}
 
 # (kind, scenario, tunings to check, early window, late window): one case per observer kind and scenario kind
 # it applies to (Bejarano's estimator and Liu's ESO also run in the DP world).
@@ -56,6 +59,8 @@ CASES = [
     ("resetting_fto", CLEAN_DP, [{**DP_UNITS, "q2_scale": 1.0e8}], (0.0, 200.0), (550.0, None)),
     ("liu_eso", CLEAN_DP, [{"eps": 0.2}], (0.0, 200.0), (550.0, None)),
     ("bejarano", CLEAN_DP, [{"delta_psi1": 1.2, "delta_p1": 1.2}], (0.0, 200.0), (550.0, None)),
+    ("custom", STRAIGHT_ASV, [{**EARTH_ESO, "params": {"omega": 10.0}}], (0.0, 10.0), (100.0, None)),
+    ("custom", CLEAN_DP, [{**EARTH_ESO, "params": {"omega": 5.0}}], (0.0, 200.0), (550.0, None)),
     ("cdo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
     ("eo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
 ]

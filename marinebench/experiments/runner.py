@@ -21,6 +21,7 @@ from marinebench.models.cybership2 import CyberShip2, linear_dp_model
 from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
+from marinebench.observers.custom import observer_class, source_digest
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.liu_eso import LiuEsoObserver
@@ -34,10 +35,10 @@ from marinebench.sim.recorders import ControlEnergy, ErrorMoments, NormIntegral,
 # the open-loop ASV world with CyberShip II's linear model (41) (``linear_dp_model``) and report the lumped
 # disturbance their model implies (the ASV world has no bias truth).
 OBSERVER_KINDS = {
-    "open_loop_asv": ("bejarano", "liu_eso", "npo", "resetting_fto"),
-    "dp_supply": ("npo", "resetting_fto", "bejarano", "liu_eso"),
+    "open_loop_asv": ("bejarano", "liu_eso", "npo", "resetting_fto", "custom"),
+    "dp_supply": ("npo", "resetting_fto", "bejarano", "liu_eso", "custom"),
     "rov_tracking": (),
-}
+}  # a custom observer's class narrows its own: ``scenario_kinds`` (observers/custom.py)
 LUMPED_KINDS = ("bejarano", "liu_eso")  # observers of the lumped disturbance sigma (Bejarano eq. (6))
 # Observers a closed-loop world runs itself; a variant's `observer` picks the one whose estimates it reports.
 WORLD_OBSERVERS = {"rov_tracking": ("cdo", "eo")}
@@ -81,6 +82,8 @@ def make_observer(kind: str, tunings: list, scenario, plant, lumped: bool = Fals
         return BejaranoObserver(tunings, plant.Minv)
     if kind == "liu_eso":
         return LiuEsoObserver(tunings, plant.Minv)
+    if kind == "custom":
+        return observer_class(tunings[0].source)([t.params for t in tunings], plant, scenario.dt)
     if kind in ("npo", "resetting_fto"):
         model = plant if isinstance(plant, SupplyVessel) else SupplyVessel(linear_dp_model(plant.params))
         return DpObserver(tunings, model, scenario.dt, bis_scale(model.params), lumped)
@@ -120,15 +123,17 @@ class RunResult:
 
 
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
-    """One batched observer per observer kind, with one tuning per run."""
+    """One batched observer per observer kind (per class for custom observers), with one tuning per run."""
     groups = []
     lumped = wants_lumped(exp)
+    observers = [exp.variants[v].observer for v in run_variant]
+    sources = [o.source if o is not None and o.kind == "custom" else None for o in observers]
     for kind in observer_kinds_for(exp.scenario):
-        idx = np.array([b for b, v in enumerate(run_variant)
-                        if exp.variants[v].observer is not None and exp.variants[v].observer.kind == kind], dtype=int)
-        if idx.size:
-            tunings = [exp.variants[run_variant[b]].observer for b in idx]
-            groups.append(ObserverGroup(make_observer(kind, tunings, exp.scenario, plant, lumped), idx))
+        for source in dict.fromkeys(sources) if kind == "custom" else [None]:
+            idx = np.array([b for b, o in enumerate(observers)
+                            if o is not None and o.kind == kind and sources[b] == source], dtype=int)
+            if idx.size:
+                groups.append(ObserverGroup(make_observer(kind, [observers[b] for b in idx], exp.scenario, plant, lumped), idx))
     return groups
 
 
@@ -157,6 +162,8 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
                 "slowest_pole_p": float(pos.poles.real.max()),
                 "fastest_pole_abs": float(max(np.abs(rot.poles).max(), np.abs(pos.poles).max())),
             }
+        elif o.kind == "custom":
+            out[v.name] = {"source": o.source, "sha256": source_digest(o.source), "params": o.params}
         elif o.kind == "liu_eso":
             out[v.name] = {"gains": [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3], "mode": o.mode}
         elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)

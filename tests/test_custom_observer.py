@@ -1,0 +1,95 @@
+"""Observers of your own (observers/custom.py): the example class through the CLI, and every way a custom
+observer can be misconfigured, each one line naming the file and key, exit code 2, nothing written."""
+
+import hashlib
+import json
+import shutil
+
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+
+from .conftest import ROOT
+
+EXAMPLE = ROOT / "examples" / "custom_observer"
+runner = CliRunner()
+
+
+@pytest.fixture
+def example(tmp_path):
+    """The example (and the scenarios it names) copied elsewhere: its relative paths resolve against the config."""
+    shutil.copytree(EXAMPLE, tmp_path / "examples" / "mine")
+    shutil.copytree(ROOT / "scenarios", tmp_path / "scenarios")
+    return tmp_path / "examples" / "mine" / "earth_eso.yaml"
+
+
+def test_example_runs_beside_liu_and_records_its_source(example, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # not the config's folder: the source is relative to the config file
+    res = runner.invoke(app, ["run", str(example), "--set", "scenario.horizon=15", "--seeds", "2", "--out", "out", "--quiet"])
+    assert res.exit_code == 0, res.output
+    d = tmp_path / "out" / "earth_eso"
+    m = pd.read_csv(d / "metrics.csv")
+    std = m[m["metric"] == "std"].groupby(["variant", "signal"])["value"].mean()
+    assert set(std.index.get_level_values("variant")) == {"liu_eps0.2", "liu_eps0.1", "earth_eso_w5", "earth_eso_w10"}
+    # the same triple pole (w = 1/eps) and the same noise: the earth-frame ESO lands near Liu's body-frame ESO
+    for w, eps in (("w5", "0.2"), ("w10", "0.1")):
+        for s in ("u", "v", "sigma_u", "sigma_v"):
+            assert std[f"earth_eso_{w}", s] == pytest.approx(std[f"liu_eps{eps}", s], rel=0.15), (w, s)
+    assert std["earth_eso_w10", "u"] < std["earth_eso_w5", "u"] and std["earth_eso_w10", "sigma_u"] > std["earth_eso_w5", "sigma_u"]
+    design = json.loads((d / "manifest.json").read_text())["designs"]["earth_eso_w5"]
+    source = example.parent / "earth_eso.py"
+    assert design["source"] == f"{source.resolve()}:EarthFrameEso" and design["params"] == {"omega": 5.0}
+    assert design["sha256"] == hashlib.sha256(source.read_bytes()).hexdigest()
+
+
+def test_a_custom_observer_parameter_sweeps_like_any_other(example, tmp_path):
+    res = runner.invoke(app, ["sweep", "omega", "--config", str(example), "--n", "2", "--horizon", "8", "--seeds", "1",
+                              "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    m = pd.read_csv(tmp_path / "out" / "earth_eso_sweep_n2_8s" / "metrics.csv")
+    u = m[(m["metric"] == "std") & (m["signal"] == "u")].sort_values("param_value")
+    assert u["param_value"].tolist() == [1.0, 20.0] and u["value"].iloc[0] != u["value"].iloc[1]
+
+
+BROKEN = {
+    "missing_file": ("source: nothere.py:EarthFrameEso", "variants.2.observer.source", "source file not found: /"),
+    "missing_class": ("source: earth_eso.py:Nope", "variants.2.observer.source", "earth_eso.py has no class 'Nope'"),
+    "bad_source": ("source: earth_eso.py", "variants.2.observer.source", "expected file.py:ClassName"),
+    "bad_params": ("params: {omega: -1.0}", "variants.2.observer.params", "ValueError: omega must be positive"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_broken_custom_observer_is_one_line_naming_file_and_key(example, tmp_path, case):
+    edit, key, message = BROKEN[case]
+    text = example.read_text()
+    field = edit.split(":")[0]
+    old = next(line for line in text.splitlines() if "omega: 5.0" in line and "custom" in line)
+    new = old.replace("source: earth_eso.py:EarthFrameEso", edit) if field == "source" else old.replace("params: {omega: 5.0}", edit)
+    example.write_text(text.replace(old, new))
+    res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet"])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 2 and len(lines) == 1, res.output
+    assert lines[0].startswith(f"error: {example}: {key}: ") and message in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, tmp_path):
+    (example.parent / "partial.py").write_text("class Half:\n    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n")
+    (example.parent / "dp_only.py").write_text(
+        (example.parent / "earth_eso.py").read_text().replace('("open_loop_asv", "dp_supply")', '("dp_supply",)'))
+    lacks = "partial.py) lacks n_state, init, outputs, max_rate, derivative (or discrete = True and step)"
+    for source, key, message in (("partial.py:Half", "variants.2.observer.source", lacks),
+                                 ("dp_only.py:EarthFrameEso", "variants.2.observer.source",
+                                  "EarthFrameEso does not apply to scenario kind open_loop_asv (its scenario_kinds: dp_supply)")):
+        doc = yaml.safe_load(example.read_text())
+        doc["variants"][2]["observer"]["source"] = source
+        path = example.parent / f"{source.split('.')[0]}.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        res = runner.invoke(app, ["validate", str(path)])
+        lines = res.output.strip().splitlines()
+        assert res.exit_code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {path}: {key}: "), res.output
+        assert message in lines[0], lines[0]
