@@ -19,7 +19,8 @@ from pydantic import ValidationError
 
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
 from marinebench.errors import ConfigError
-from marinebench.observers.custom import observer_class, resolve_source
+from marinebench.observers.custom import observer_class
+from marinebench.plugins import resolve_source
 
 
 class YamlLoader(yaml.SafeLoader):
@@ -172,9 +173,10 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
     doc = read_yaml(path)
     base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
-    for v in doc.get("variants") or []:  # a custom observer's file is relative to the experiment file naming it
-        if isinstance(v, dict) and isinstance(v.get("observer"), dict) and "source" in v["observer"]:
-            v["observer"]["source"] = resolve_source(v["observer"]["source"], path.parent)
+    for v in doc.get("variants") or []:  # a custom observer's or controller's file is relative to this file
+        for part in ("observer", "controller"):
+            if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
+                v[part]["source"] = resolve_source(v[part]["source"], path.parent)
     origins[""] = path
     if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
         for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
@@ -280,6 +282,11 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             need = "a 'controller'" if closed_loop else "an 'observer'"
             raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
         if closed_loop:
+            if v.controller.kind == "custom":
+                try:
+                    v.controller.build(1)
+                except Exception as exc:  # noqa: BLE001 - a custom controller's constructor refusing its params
+                    raise ConfigError(file, f"variants.{i}.controller.params", f"{type(exc).__name__}: {exc}") from None
             continue
         if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "

@@ -6,12 +6,16 @@ import pytest
 from marinebench.controllers.spec import ControllerSpec
 from marinebench.registry import kinds
 
+from .conftest import ROOT
+
 SPECS = [
     ControllerSpec(kind="rise"),
     ControllerSpec(kind="rise", preset="table2_equivalent"),
     ControllerSpec(kind="srise"),
+    ControllerSpec(kind="custom", source=f"{ROOT / 'examples' / 'custom_controller' / 'pid.py'}:Pid"),  # the example
 ]
-IDS = ["rise_subjugator", "rise_table2_equivalent", "srise"]
+IDS = ["rise_subjugator", "rise_table2_equivalent", "srise", "custom_pid"]
+RISE = [(s, i) for s, i in zip(SPECS, IDS) if s.kind != "custom"]
 
 
 def test_every_registered_controller_kind_is_in_the_suite():
@@ -24,12 +28,17 @@ def errors(steps: int, batch: int, seed: int = 0) -> tuple[np.ndarray, np.ndarra
 
 
 @pytest.mark.parametrize("spec", SPECS, ids=IDS)
-def test_command_shape_finite_and_zero_at_the_start(spec):
+def test_command_shape_and_finite(spec):
     ctrl = spec.build(3)
     e1, e1_dot = errors(1, 3)
     tau = ctrl.command(e1[0], e1_dot[0], 0.01)
     assert tau.shape == (3, 2) and np.isfinite(tau).all()
-    np.testing.assert_allclose(tau, 0.0, atol=1e-12)  # tau(t0) = 0 by the -(.)e2(t0) term (RISE, eq. 15)
+
+
+@pytest.mark.parametrize("spec", [s for s, _ in RISE], ids=[i for _, i in RISE])
+def test_rise_command_is_zero_at_the_start(spec):
+    e1, e1_dot = errors(1, 3)
+    np.testing.assert_allclose(spec.build(3).command(e1[0], e1_dot[0], 0.01), 0.0, atol=1e-12)  # -(.)e2(t0) term, eq. 15
 
 
 @pytest.mark.parametrize("spec", SPECS, ids=IDS)

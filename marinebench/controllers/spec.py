@@ -1,25 +1,33 @@
-"""The controller of a closed-loop variant: RISE or S+RISE with its feedback source and output unit."""
+"""The controller of a closed-loop variant: RISE, S+RISE or a class of your own, with its feedback source and
+output unit.
+
+A custom controller (``kind: custom, source: file.py:Class, params: {...}``; ``marinebench/plugins.py`` loads it)
+is built as ``Class(params, batch)`` and implements ``command(e1, e1_dot, h) -> tau``: the tracking errors
+``e1 = eta_d - eta`` and their rates, ``(batch, 2)`` for (depth [m], yaw [rad]), and the control period ``h`` [s];
+``tau (batch, 2)`` in N and N m (before ``output_scale``; thrust allocation and saturation follow). It keeps its
+own state (integrals) between calls, one row per run."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+from marinebench.plugins import user_class
 from marinebench.settings import over
 
 # The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
 # as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
-DEFAULT_SCALE = {"rise": (1.0, 1.0), "srise": (40.0, 9.81)}
+DEFAULT_SCALE = {"rise": (1.0, 1.0), "srise": (40.0, 9.81), "custom": (1.0, 1.0)}
 
 
 class ControllerSpec(BaseModel):
     """The controller of a variant in a closed-loop (rov_tracking) scenario."""
 
     model_config = ConfigDict(extra="forbid")
-    kind: Literal["rise", "srise"]
+    kind: Literal["rise", "srise", "custom"]
     feedback: Literal["measured", "cdo", "eo"] = Field(
         "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "
         "observer's estimates of eta and eta_dot"
@@ -41,6 +49,9 @@ class ControllerSpec(BaseModel):
     )
     depth: dict[str, float] = Field(default_factory=dict, description="gain overrides for depth")
     yaw: dict[str, float] = Field(default_factory=dict, description="gain overrides for yaw")
+    source: str | None = Field(None, description="custom: file.py:ClassName (relative to the experiment file) or "
+                               "package.module:ClassName (see the module docstring)")
+    params: dict[str, Any] = Field(default_factory=dict, description="custom: passed to the class")
 
     @model_validator(mode="after")
     def _feedforward_needs_an_observer(self):
@@ -48,7 +59,16 @@ class ControllerSpec(BaseModel):
             raise ValueError("output_scale must be positive")
         if any(self.feedforward_mask()) and self.feedback == "measured":
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
-        self.gains()  # unknown or out-of-range gain overrides are config errors, not ignored
+        if self.kind == "custom":
+            if self.source is None:
+                raise ValueError("source: a custom controller needs source: file.py:ClassName")
+            if self.depth or self.yaw or self.preset != "subjugator":
+                raise ValueError("a custom controller takes its settings in 'params' (not preset, depth, yaw)")
+            user_class(self.source, ("command",))
+        elif self.source is not None or self.params:
+            raise ValueError(f"source and params are for custom controllers, not {self.kind}")
+        else:
+            self.gains()  # unknown or out-of-range gain overrides are config errors, not ignored
         return self
 
     def gains(self) -> list[RiseGains] | list[SRiseGains]:
@@ -69,4 +89,6 @@ class ControllerSpec(BaseModel):
         return np.broadcast_to(np.asarray(scale, dtype=float), (2,)).copy()
 
     def build(self, batch: int):
+        if self.kind == "custom":
+            return user_class(self.source, ("command",))(self.params, batch)
         return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)

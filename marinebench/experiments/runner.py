@@ -21,10 +21,11 @@ from marinebench.models.cybership2 import CyberShip2, linear_dp_model
 from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.bejarano import BejaranoObserver
-from marinebench.observers.custom import observer_class, source_digest
+from marinebench.observers.custom import observer_class
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.liu_eso import LiuEsoObserver
+from marinebench.plugins import source_digest
 from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
@@ -148,6 +149,8 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
         o = v.observer
         if v.controller is not None:
             out[v.name] = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
+            if v.controller.kind == "custom":
+                out[v.name]["controller_sha256"] = source_digest(v.controller.source)
             if o is not None and (o.cdo or o.eo) and len(exp.variants) <= 20:
                 cdo, eo = o.resolve(exp.scenario)
                 out[v.name].update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))

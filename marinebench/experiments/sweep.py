@@ -86,7 +86,8 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                         **point, "name": f"{p}_{i:03d}_{g}", "world": spec.groups[g],
                         "tags": {"param": p, "param_value": float(value), "gnss": g}}))
                 except ValidationError as exc:
-                    raise ConfigError(file, f"sweep.params.{p}", f"{value:g}: {exc.errors()[0]['msg']}") from None
+                    raise ConfigError(file, f"sweep.params.{p}",
+                                      f"{value:g}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
     update = {"variants": variants, "figures": [], "table": None, "sweep": None,
               "name": name}
     if horizon is not None:

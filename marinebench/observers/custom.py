@@ -25,84 +25,28 @@ manifest. With ``sweep --dask``, the file must be at the same path on the worker
 
 from __future__ import annotations
 
-import hashlib
-import importlib
-import importlib.util
-import sys
-from pathlib import Path
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from marinebench.plugins import user_class
+
 SCENARIO_KINDS = ("open_loop_asv", "dp_supply")  # worlds whose observers take the measured pose and the thrust
 MEMBERS = ("signals", "scenario_kinds", "n_state", "init", "outputs", "max_rate")
-_LOADED: dict[str, tuple[float, type]] = {}
-
-
-def _split(source: str) -> tuple[str, str]:
-    where, _, name = source.rpartition(":")
-    if not where or not name.isidentifier():
-        raise ValueError(f"source '{source}': expected file.py:ClassName or package.module:ClassName")
-    return where, name
 
 
 def observer_class(source: str) -> type:
-    """The class ``source`` names, imported (a ``.py`` file is re-read when it changes) and checked against
-    the protocol; ValueError with a one-line reason otherwise."""
-    where, name = _split(source)
-    if where.endswith(".py"):
-        path = Path(where)
-        if not path.is_file():
-            raise ValueError(f"source file not found: {where}")
-        mtime = path.stat().st_mtime
-        if source in _LOADED and _LOADED[source][0] == mtime:
-            return _LOADED[source][1]
-        module_name = "marinebench_custom_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
-        spec = importlib.util.spec_from_file_location(module_name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[module_name] = module  # dataclasses and pickling look the module up by name
-        try:
-            spec.loader.exec_module(module)
-        except Exception as exc:  # noqa: BLE001 - the user's module: any error is a config error naming it
-            del sys.modules[module_name]
-            raise ValueError(f"{where}: cannot import ({type(exc).__name__}: {exc})") from None
-    else:
-        mtime = 0.0
-        try:
-            module = importlib.import_module(where)
-        except Exception as exc:  # noqa: BLE001 - as above
-            raise ValueError(f"cannot import module '{where}' ({type(exc).__name__}: {exc})") from None
-    cls = getattr(module, name, None)
-    if not isinstance(cls, type):
-        raise ValueError(f"{where} has no class '{name}'")  # noqa: TRY004 - pydantic reports ValueErrors
-    missing = [m for m in MEMBERS if not hasattr(cls, m)]
-    if not getattr(cls, "discrete", False) and not hasattr(cls, "derivative"):
-        missing.append("derivative (or discrete = True and step)")
+    """The class ``source`` names, imported and checked against the protocol above; ValueError otherwise."""
+    cls = user_class(source, MEMBERS)
+    name = source.rpartition(":")[2]
     if getattr(cls, "discrete", False) and not hasattr(cls, "step"):
-        missing.append("step")
-    if missing:
-        raise ValueError(f"{name} ({where}) lacks {', '.join(missing)}: see marinebench/observers/custom.py")
+        raise ValueError(f"{name} is discrete but lacks step: see marinebench/observers/custom.py")
+    if not getattr(cls, "discrete", False) and not hasattr(cls, "derivative"):
+        raise ValueError(f"{name} lacks derivative (or discrete = True and step): see marinebench/observers/custom.py")
     unknown = set(cls.scenario_kinds) - set(SCENARIO_KINDS)
     if unknown:
         raise ValueError(f"{name}.scenario_kinds: {sorted(unknown)} (custom observers apply to {', '.join(SCENARIO_KINDS)})")
-    _LOADED[source] = (mtime, cls)
     return cls
-
-
-def source_digest(source: str) -> str | None:
-    """SHA-256 of a ``.py`` source file (None for a module: its package version is what identifies it)."""
-    where, _ = _split(source)
-    return hashlib.sha256(Path(where).read_bytes()).hexdigest() if where.endswith(".py") else None
-
-
-def resolve_source(source: Any, base: Path) -> Any:
-    """A relative ``file.py:Class`` made absolute against ``base`` (the experiment file's folder)."""
-    if not isinstance(source, str) or ":" not in source:
-        return source
-    where, _, name = source.rpartition(":")
-    if not where.endswith(".py") or Path(where).is_absolute():
-        return source
-    return f"{(base / where).resolve()}:{name}"
 
 
 class CustomTuning(BaseModel):

@@ -44,6 +44,15 @@ def _cell(r) -> str:
     return cell
 
 
+def _shown(r: pd.Series, display) -> pd.Series:
+    """A summary row in the table's display unit (``table.display``: value x scale)."""
+    if display is None:
+        return r
+    r = r.copy()
+    r[["mean", "ci_low", "ci_high"]] = r[["mean", "ci_low", "ci_high"]] * display.scale
+    return r
+
+
 def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """Multi-scenario layout (Tijjani Table III): a row per (metric, signal, scenario), a column per variant,
     each followed by the paper's value when given."""
@@ -79,10 +88,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
                 for v in exp.variants:
                     key = (scen, v.name, sig, name)
                     if key in s.index:
-                        r = s.loc[key].copy()
-                        if d is not None:
-                            r[["mean", "ci_low", "ci_high"]] = r[["mean", "ci_low", "ci_high"]] * d.scale
-                        row.append(_cell(r))
+                        row.append(_cell(_shown(s.loc[key], d)))
                     else:
                         row.append("–")
                     if paper is not None:
@@ -108,10 +114,12 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
         names, spec_title, signals, paper = spec.metrics or [spec.metric], spec.title, spec.signals, spec.paper
     s = summary.set_index(["variant", "signal", "metric"])
     multi = len(names) > 1
+    display = spec.display if spec is not None else {}
     header = ["variant"]
     for name in names:
         for sig in signals:
-            label = LABELS.get(sig, sig)
+            d = display.get(f"{name}/{sig}")
+            label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
             header.append(f"{name} ({label})" if multi else f"{label} ours")
             if paper is not None and not multi:
                 header.append(f"{label} paper")
@@ -129,7 +137,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
         for name in names:
             for sig in signals:
                 if (v.name, sig, name) in s.index:
-                    cell = _cell(s.loc[(v.name, sig, name)])
+                    cell = _cell(_shown(s.loc[(v.name, sig, name)], display.get(f"{name}/{sig}")))
                 else:
                     cell = "n/a"
                 row.append(cell)

@@ -1,5 +1,6 @@
-"""Observers of your own (observers/custom.py): the example class through the CLI, and every way a custom
-observer can be misconfigured, each one line naming the file and key, exit code 2, nothing written."""
+"""Observers and controllers of your own (observers/custom.py, controllers/spec.py, plugins.py): the example
+classes through the CLI, and every way such a class can be misconfigured, each one line naming the file and key,
+exit code 2, nothing written."""
 
 import hashlib
 import json
@@ -81,7 +82,7 @@ def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, t
     (example.parent / "partial.py").write_text("class Half:\n    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n")
     (example.parent / "dp_only.py").write_text(
         (example.parent / "earth_eso.py").read_text().replace('("open_loop_asv", "dp_supply")', '("dp_supply",)'))
-    lacks = "partial.py) lacks n_state, init, outputs, max_rate, derivative (or discrete = True and step)"
+    lacks = "partial.py) lacks n_state, init, outputs, max_rate"
     for source, key, message in (("partial.py:Half", "variants.2.observer.source", lacks),
                                  ("dp_only.py:EarthFrameEso", "variants.2.observer.source",
                                   "EarthFrameEso does not apply to scenario kind open_loop_asv (its scenario_kinds: dp_supply)")):
@@ -93,3 +94,55 @@ def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, t
         lines = res.output.strip().splitlines()
         assert res.exit_code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {path}: {key}: "), res.output
         assert message in lines[0], lines[0]
+
+
+CONTROLLER = ROOT / "examples" / "custom_controller"
+
+
+@pytest.fixture
+def controller_example(tmp_path):
+    shutil.copytree(CONTROLLER, tmp_path / "examples" / "ctl")
+    shutil.copytree(ROOT / "scenarios", tmp_path / "scenarios")
+    return tmp_path / "examples" / "ctl" / "pid_s1.yaml"
+
+
+def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_example, tmp_path):
+    res = runner.invoke(app, ["run", str(controller_example), "--set", "scenario.horizon=12", "--seeds", "2",
+                              "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    d = tmp_path / "out" / "pid_s1"
+    m = pd.read_csv(d / "metrics.csv")
+    rmse = m[m["metric"] == "rmse"].groupby(["variant", "signal"])["value"].mean()
+    assert rmse["pid", "depth"] < 0.02 and rmse["pid", "yaw"] < 0.05  # it tracks: cm and a few degrees over the moves
+    assert rmse["pid", "depth"] != rmse["cdo_pid", "depth"]  # feedback: cdo feeds it the CDO's estimates
+    table = (d / "table.md").read_text()
+    assert "rmse (depth [1e-2 m])" in table  # table.display applies to single-scenario tables too
+    designs = json.loads((d / "manifest.json").read_text())["designs"]
+    source = controller_example.parent / "pid.py"
+    assert designs["pid"]["controller"]["source"] == f"{source.resolve()}:Pid"
+    assert designs["pid"]["controller_sha256"] == hashlib.sha256(source.read_bytes()).hexdigest()
+    res = runner.invoke(app, ["sweep", "depth_kp", "--config", str(controller_example), "--n", "2", "--horizon", "8",
+                              "--seeds", "1", "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    m = pd.read_csv(tmp_path / "out" / "pid_s1_sweep_depth_kp_n2_8s" / "metrics.csv")
+    depth = m[(m["metric"] == "rmse") & (m["signal"] == "depth")].sort_values("param_value")
+    assert depth["param_value"].tolist() == [100.0, 1600.0] and depth["value"].iloc[0] > depth["value"].iloc[1]
+
+
+@pytest.mark.parametrize("edit, key, message", [
+    ("source: pid.py:Nope", "variants.2.controller", "pid.py has no class 'Nope'"),
+    ("source: pid.py:Pid, preset: table2_equivalent", "variants.2.controller",
+     "a custom controller takes its settings in 'params' (not preset, depth, yaw)"),
+    ("source: pid.py:Pid, params: {depth: {kq: 1.0}}", "variants.2.controller.params",
+     "ValueError: unknown PID settings ['depth.kq']"),
+])
+def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_example, tmp_path, edit, key, message):
+    text = controller_example.read_text()
+    old = "source: pid.py:Pid, params: {depth: {kp: 400.0}, yaw: {kp: 29.0}}"
+    assert old in text
+    controller_example.write_text(text.replace(old, edit, 1))
+    res = runner.invoke(app, ["run", str(controller_example), "--out", str(tmp_path / "out"), "--quiet"])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 2 and len(lines) == 1, res.output
+    assert lines[0].startswith(f"error: {controller_example}: {key}: ") and message in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()

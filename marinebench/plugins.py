@@ -1,0 +1,81 @@
+"""Classes of your own named by a config (``source: file.py:Class`` or ``package.module:Class``): a custom
+observer (``observers/custom.py``) or controller (``controllers/spec.py``).
+
+A ``.py`` source is relative to the experiment file that names it (:func:`resolve_source`, applied when the file
+is read) and re-imported when it changes; a module source is imported as usual. Every failure is a ValueError
+with a one-line reason, so config validation reports it with the file and key.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import sys
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+_LOADED: dict[str, tuple[float, type]] = {}
+
+
+def split_source(source: str) -> tuple[str, str]:
+    """``(file or module, class name)``."""
+    where, _, name = source.rpartition(":")
+    if not where or not name.isidentifier():
+        raise ValueError(f"source '{source}': expected file.py:ClassName or package.module:ClassName")
+    return where, name
+
+
+def _module(where: str):
+    if not where.endswith(".py"):
+        try:
+            return importlib.import_module(where)
+        except Exception as exc:  # noqa: BLE001 - the user's module: any error is a config error naming it
+            raise ValueError(f"cannot import module '{where}' ({type(exc).__name__}: {exc})") from None
+    path = Path(where)
+    module_name = "marinebench_user_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
+    spec = importlib.util.spec_from_file_location(module_name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module  # dataclasses and pickling look the module up by name
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # noqa: BLE001 - as above
+        del sys.modules[module_name]
+        raise ValueError(f"{where}: cannot import ({type(exc).__name__}: {exc})") from None
+    return module
+
+
+def user_class(source: str, members: Iterable[str]) -> type:
+    """The class ``source`` names, with every one of ``members`` (attributes or methods); cached until a
+    ``.py`` source changes."""
+    where, name = split_source(source)
+    if where.endswith(".py") and not Path(where).is_file():
+        raise ValueError(f"source file not found: {where}")
+    mtime = Path(where).stat().st_mtime if where.endswith(".py") else 0.0
+    if source in _LOADED and _LOADED[source][0] == mtime:
+        return _LOADED[source][1]
+    cls = getattr(_module(where), name, None)
+    if not isinstance(cls, type):
+        raise ValueError(f"{where} has no class '{name}'")  # noqa: TRY004 - pydantic reports ValueErrors
+    missing = [m for m in members if not hasattr(cls, m)]
+    if missing:
+        raise ValueError(f"{name} ({where}) lacks {', '.join(missing)}")
+    _LOADED[source] = (mtime, cls)
+    return cls
+
+
+def source_digest(source: str) -> str | None:
+    """SHA-256 of a ``.py`` source file (None for a module: its package version is what identifies it)."""
+    where, _ = split_source(source)
+    return hashlib.sha256(Path(where).read_bytes()).hexdigest() if where.endswith(".py") else None
+
+
+def resolve_source(source: Any, base: Path) -> Any:
+    """A relative ``file.py:Class`` made absolute against ``base`` (the experiment file's folder)."""
+    if not isinstance(source, str) or ":" not in source:
+        return source
+    where, _, name = source.rpartition(":")
+    if not where.endswith(".py") or Path(where).is_absolute():
+        return source
+    return f"{(base / where).resolve()}:{name}"
