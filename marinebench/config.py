@@ -244,6 +244,7 @@ class SweepParam(BaseModel):
     trend: tuple[float, float] | None = Field(
         None, description="sub-range over which table.md reports the Spearman rank correlation of the KPI with the value"
     )
+    label: str | None = Field(None, description="the figure's axis label (default: the parameter's name)")
 
     @model_validator(mode="after")
     def _range(self) -> SweepParam:

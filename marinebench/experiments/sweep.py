@@ -304,7 +304,7 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
                     ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
             if exp.sweep.params[p].spacing == "log":
                 ax.set_xscale("log")
-            ax.set_xlabel(p)
+            ax.set_xlabel(exp.sweep.params[p].label or p)
             ax.set_ylabel(ylabel)
             if n_groups * n_signals > 1:  # a lone curve needs no legend (its group is the default)
                 ax.legend(fontsize=8)
