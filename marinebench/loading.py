@@ -20,7 +20,7 @@ from pydantic import ValidationError
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
 from marinebench.errors import ConfigError
 from marinebench.observers.custom import observer_class
-from marinebench.plugins import resolve_source
+from marinebench.plugins import resolve_source, split_source
 
 
 class YamlLoader(yaml.SafeLoader):
@@ -292,7 +292,7 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
                               f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
         if v.observer.kind == "custom" and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
-            raise ConfigError(file, f"variants.{i}.observer.source", f"{v.observer.source.rpartition(':')[2]} does not apply "
+            raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
                               f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
         try:
             groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0]))

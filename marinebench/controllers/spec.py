@@ -21,6 +21,7 @@ from marinebench.settings import over
 # The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
 # as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
 DEFAULT_SCALE = {"rise": (1.0, 1.0), "srise": (40.0, 9.81), "custom": (1.0, 1.0)}
+CUSTOM_MEMBERS = ("command",)  # what a custom controller class must have (the module docstring)
 
 
 class ControllerSpec(BaseModel):
@@ -64,7 +65,7 @@ class ControllerSpec(BaseModel):
                 raise ValueError("source: a custom controller needs source: file.py:ClassName")
             if self.depth or self.yaw or self.preset != "subjugator":
                 raise ValueError("a custom controller takes its settings in 'params' (not preset, depth, yaw)")
-            user_class(self.source, ("command",))
+            user_class(self.source, CUSTOM_MEMBERS)
         elif self.source is not None or self.params:
             raise ValueError(f"source and params are for custom controllers, not {self.kind}")
         else:
@@ -90,5 +91,5 @@ class ControllerSpec(BaseModel):
 
     def build(self, batch: int):
         if self.kind == "custom":
-            return user_class(self.source, ("command",))(self.params, batch)
+            return user_class(self.source, CUSTOM_MEMBERS)(self.params, batch)
         return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)

@@ -29,7 +29,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from marinebench.plugins import user_class
+from marinebench.plugins import split_source, user_class
 
 SCENARIO_KINDS = ("open_loop_asv", "dp_supply")  # worlds whose observers take the measured pose and the thrust
 MEMBERS = ("signals", "scenario_kinds", "n_state", "init", "outputs", "max_rate")
@@ -38,7 +38,7 @@ MEMBERS = ("signals", "scenario_kinds", "n_state", "init", "outputs", "max_rate"
 def observer_class(source: str) -> type:
     """The class ``source`` names, imported and checked against the protocol above; ValueError otherwise."""
     cls = user_class(source, MEMBERS)
-    name = source.rpartition(":")[2]
+    name = split_source(source)[1]
     if getattr(cls, "discrete", False) and not hasattr(cls, "step"):
         raise ValueError(f"{name} is discrete but lacks step: see marinebench/observers/custom.py")
     if not getattr(cls, "discrete", False) and not hasattr(cls, "derivative"):
