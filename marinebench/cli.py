@@ -211,16 +211,18 @@ def sweep(
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
         fail("--horizon: must be positive")
+    groups = gnss.split(",") if gnss else None
+    overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     try:
         base, _ = _load(config, set_ or [], seed, seeds)
-        exp = sweep_experiment(base, params, gnss.split(",") if gnss else None, n, horizon, config)
+        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides)
         from marinebench.loading import preflight
 
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
     target = (out_dir if out_dir is not None else Path("results")) / (
-        config.stem + sweep_suffix(base, params, gnss.split(",") if gnss else None, n, horizon))
+        config.stem + sweep_suffix(base, params, groups, n, horizon, overrides))
     t0 = _time.perf_counter()
     try:
         with dask_client(dask, workers) if dask else nullcontext() as client, Progress(

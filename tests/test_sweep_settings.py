@@ -95,3 +95,13 @@ def test_sweep_folder_names_keep_subsets_and_monte_carlo_sweeps_apart():
     many = exp.model_copy(update={"seeds": 20})
     assert sweep_suffix(many, ["eps"]) == "_sweep_eps_20seeds"
     assert sweep_suffix(many, every) == "_sweep_20seeds"
+    # --set and --seed are in the name as given (a probe on another world must not replace the reference)
+    gm = ["scenario.sensors.gm_time_constant=100", "seed=7"]
+    assert sweep_suffix(many, ["eps"], overrides=gm) == "_sweep_eps_scenario.sensors.gm_time_constant=100_seed=7_20seeds"
+    assert sweep_suffix(exp, every, overrides=["variants[resetting].observer.eps=[0.1, 0.1, 0.01]"]) == \
+        "_sweep_variants[resetting].observer.eps=0.1,0.1,0.01"
+    assert sweep_suffix(exp, every, overrides=["scenario.events.0.force=[1e6, 0, 0]"]) != \
+        sweep_suffix(exp, every, overrides=["scenario.events.1.force=[1e6, 0, 0]"])
+    long = sweep_suffix(exp, every, overrides=[f"scenario.events.{i}.force=[1e6, 2e6, 3e7]" for i in range(3)])
+    assert long.startswith("_sweep_set-") and len(long) == len("_sweep_set-") + 8
+    assert long != sweep_suffix(exp, every, overrides=[f"scenario.events.{i}.force=[1e6, 2e6, 4e7]" for i in range(3)])

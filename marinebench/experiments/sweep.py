@@ -9,6 +9,9 @@ and ``gnss`` (the group), which become columns of ``metrics.csv``.
 from __future__ import annotations
 
 import copy
+import hashlib
+import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -28,12 +31,14 @@ from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
 
 def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = None, n: int | None = None,
-                 horizon: float | None = None) -> str:
+                 horizon: float | None = None, overrides: Sequence[str] = ()) -> str:
     """``_sweep`` and what sets this sweep apart from the config's full one-seed sweep, so that none replaces
     another's folder: the parameters and world groups swept when only some of the config's (in the config's
-    order), ``_n<N>`` for another number of points, ``_<T>s`` for another horizon and ``_<seeds>seeds`` for a
-    Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``). ``exp`` is the
-    config's experiment (its ``sweep`` section and seeds)."""
+    order), ``_n<N>`` for another number of points, ``_<T>s`` for another horizon, the command line's
+    ``overrides`` (``--set key=value`` and ``--seed``, see :func:`override_tags`) and ``_<seeds>seeds`` for a
+    Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``,
+    ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``). ``exp`` is the config's experiment (its ``sweep`` section and
+    seeds)."""
     spec = exp.sweep
     tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
     if groups and set(groups) < set(spec.groups):
@@ -43,21 +48,38 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     own = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario.horizon
     if horizon is not None and horizon != own:
         tags.append(f"{horizon:g}s")
+    tags += override_tags(overrides)
     if exp.seeds > 1:
         tags.append(f"{exp.seeds}seeds")
     return "_sweep" + "".join(f"_{t}" for t in tags)
 
 
+def override_tags(overrides: Sequence[str], limit: int = 60) -> list[str]:
+    """Folder-name tags of command-line overrides, one per ``key=value`` as given, lists as their
+    comma-separated items (``scenario.sensors.gm_time_constant=100``, ``seed=7``,
+    ``variants[resetting].observer.eps=0.1,0.1,0.01``), or, when they would make the name longer than
+    ``limit`` characters, one tag ``set-<digest>`` (the overrides themselves are in the manifest)."""
+    tags = []
+    for item in overrides:
+        key, _, value = item.partition("=")
+        value = re.sub(r"\s*,\s*", ",", value.strip().strip("[](){}"))
+        tags.append(re.sub(r"[^A-Za-z0-9._+,=\[\]-]+", "-", f"{key.strip()}={value}"))
+    if sum(len(t) + 1 for t in tags) > limit:
+        return ["set-" + hashlib.sha256("\n".join(overrides).encode()).hexdigest()[:8]]
+    return tags
+
+
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
-                     horizon: float | None, file: Path) -> Experiment:
+                     horizon: float | None, file: Path, overrides: Sequence[str] = ()) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
 
     The experiment (and its output folder) is named by :func:`sweep_suffix`: a Monte-Carlo sweep, or one of
-    some of the parameters or groups, with other points or another horizon, does not replace the full sweep."""
+    some of the parameters or groups, with other points, another horizon or command-line ``overrides``, does
+    not replace the full sweep."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
-    name = exp.name + sweep_suffix(exp, params, groups, n, horizon)
+    name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     unknown = [p for p in params if p not in spec.params]
     if unknown:
