@@ -91,6 +91,9 @@ def run(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
                                                  "everything is written")] = False,
+    resume: Annotated[bool, typer.Option(help="skip an experiment whose results were written from the same inputs "
+                                         "(manifest's inputs_key: resolved config, seeds, marinebench source, package "
+                                         "versions, custom classes' files), e.g. after an interruption")] = False,
 ) -> None:
     """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md (claims.md),
     figures/."""
@@ -101,11 +104,40 @@ def run(
     except MarinebenchError as exc:
         fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
-    jobs = min(jobs or os.cpu_count() or 1, len(loaded))
-    failing = _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
+    failing = 0
+    if resume:
+        loaded, failing = _skip_current(loaded, base, quiet)
+    jobs = min(jobs or os.cpu_count() or 1, max(1, len(loaded)))
+    failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
+
+
+def _skip_current(loaded: list, base: Path, quiet: bool) -> tuple[list, int]:
+    """``run --resume``: the experiments whose ``manifest.json`` lacks this run's inputs key (to run), and the
+    number of failing claims the others' manifests record."""
+    import json
+
+    from marinebench.provenance import inputs_key
+
+    todo, failing = [], 0
+    for item in loaded:
+        path, exp, _ = item
+        target = base / path.stem
+        try:
+            stored = json.loads((target / "manifest.json").read_text())
+        except (OSError, ValueError):
+            stored = {}
+        if stored.get("inputs_key") != inputs_key(exp):
+            todo.append(item)
+            continue
+        claims = stored.get("claims", [])
+        failing += sum(not c["holds"] and "not_checked" not in c for c in claims)
+        if not quiet:
+            verdict = f", {sum(c['holds'] for c in claims)} of {len(claims)} claims hold" if claims else ""
+            out.print(f"{exp.name}: up to date (same inputs){verdict} -> {target}", markup=False)
+    return todo, failing
 
 
 def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
@@ -200,6 +232,7 @@ def sweep(
         sweep_suffix,
         sweep_table,
     )
+    from marinebench.provenance import inputs_key
     from marinebench.results.claims import manifest_entries, summary_line
     from marinebench.results.claims import markdown as claims_markdown
     from marinebench.results.outputs import model_assumptions, resolved_yaml
@@ -247,7 +280,8 @@ def sweep(
         (tmp / "figures").mkdir()
         sweep_figure(metrics, shown, base, tmp / "figures" / "sweep.png")
         (tmp / "manifest.json").write_text(manifest(
-            experiment=exp.name, config_files={"experiment": str(config)}, overrides=set_ or [], seed=exp.seed, seeds=exp.seeds,
+            experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)}, overrides=set_ or [],
+            seed=exp.seed, seeds=exp.seeds,
             runs=len(exp.variants) * exp.seeds,
             params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,

@@ -50,6 +50,25 @@ def test_rerun_replaces_results_atomically(tiny_config, tmp_path):
     assert [p.name for p in out.iterdir()] == ["tiny"]  # no temp or backup directories left
 
 
+def test_resume_skips_experiments_whose_inputs_are_unchanged(tiny_config, tmp_path):
+    out = tmp_path / "out"
+    args = ["run", str(tiny_config), "--out", str(out)]
+    assert runner.invoke(app, [*args, "--quiet"]).exit_code == 0
+    written = (out / "tiny" / "manifest.json").stat().st_mtime_ns
+    res = runner.invoke(app, [*args, "--resume"])
+    assert res.exit_code == 0 and "tiny: up to date (same inputs) ->" in res.output, res.output
+    assert (out / "tiny" / "manifest.json").stat().st_mtime_ns == written  # nothing rewritten
+    res = runner.invoke(app, [*args, "--resume", "--seeds", "3"])  # other inputs: run again
+    assert res.exit_code == 0 and "up to date" not in res.output
+    assert pd.read_csv(out / "tiny" / "metrics.csv")["seed"].nunique() == 3
+    manifest = out / "tiny" / "manifest.json"
+    man = json.loads(manifest.read_text())
+    manifest.write_text(json.dumps(man | {"inputs_key": "0" * 64}))  # as if written by other code
+    res = runner.invoke(app, [*args, "--resume", "--seeds", "3", "--jobs", "2"])
+    assert res.exit_code == 0 and "up to date" not in res.output
+    assert json.loads(manifest.read_text())["inputs_key"] == man["inputs_key"]
+
+
 def edit(path: Path, tmp_path: Path, name: str, fn) -> Path:
     doc = yaml.safe_load(path.read_text())
     fn(doc)

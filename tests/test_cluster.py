@@ -9,9 +9,10 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.errors import ClusterError
 from marinebench.experiments import sweep
-from marinebench.experiments.cluster import check_workers, dask_client, source_digest
+from marinebench.experiments.cluster import check_workers, dask_client
 from marinebench.experiments.sweep import run_chunked, sweep_experiment
 from marinebench.loading import load_experiment
+from marinebench.provenance import package_digest
 
 from .conftest import ROOT
 
@@ -83,7 +84,7 @@ class FakeClient:
     """Answers ``client.run`` per function as given workers would (a value or an exception per worker)."""
 
     def __init__(self, versions: dict, digests: dict, joined: bool = True) -> None:
-        self.answers = {"version": versions, "source_digest": digests}
+        self.answers = {"version": versions, "package_digest": digests}
         self.joined = joined
 
     def wait_for_workers(self, n: int, timeout: float) -> None:
@@ -96,7 +97,7 @@ class FakeClient:
 
 
 def test_workers_must_run_this_marinebench():
-    mine = source_digest()
+    mine = package_digest()
     check_workers(FakeClient({"w1": "0.1.0", "w2": "0.1.0"}, {"w1": mine, "w2": mine}))  # accepted
     missing = FakeClient({"w1": "0.1.0", "w2": ModuleNotFoundError("marinebench")}, {"w1": mine})
     with pytest.raises(ClusterError, match=r"not installed on 1 of 2 worker\(s\) \(e.g. w2\)"):

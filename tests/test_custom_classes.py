@@ -55,6 +55,20 @@ def test_a_custom_observer_parameter_sweeps_like_any_other(example, tmp_path):
     assert u["param_value"].tolist() == [1.0, 20.0] and u["value"].iloc[0] != u["value"].iloc[1]
 
 
+def test_results_are_current_only_for_the_same_class_file(example):
+    """``run --resume`` and a sweep's finished batches go by provenance.inputs_key, which covers the class file."""
+    from marinebench.loading import load_experiment
+    from marinebench.provenance import custom_sources, inputs_key
+
+    exp, _ = load_experiment(example)
+    source = example.parent / "earth_eso.py"
+    assert custom_sources(exp) == [f"{source.resolve()}:EarthFrameEso"]
+    before = inputs_key(exp)
+    assert inputs_key(load_experiment(example)[0]) == before
+    source.write_text(source.read_text() + "\n# edited\n")
+    assert inputs_key(exp) != before
+
+
 BROKEN = {
     "missing_file": ("source: nothere.py:EarthFrameEso", "variants.2.observer.source", "source file not found: /"),
     "missing_class": ("source: earth_eso.py:Nope", "variants.2.observer.source", "earth_eso.py has no class 'Nope'"),

@@ -203,9 +203,9 @@ def test_interrupted_sweep_resumes_without_rerunning_finished_batches(tmp_path, 
     assert a["value"].tolist() == b["value"].tolist()
     # batches left by other code (e.g. before a fix) are not reused, though the config is the same
     (target.parent / f".{target.name}.partial" / "chunk-0001.csv").unlink()
-    from marinebench.experiments import cluster
+    from marinebench import provenance
 
-    monkeypatch.setattr(cluster, "source_digest", lambda: "other code")
+    monkeypatch.setattr(provenance, "package_digest", lambda: "other code")
     _, _, ran = run_chunked(exp, target, chunk_size=2)
     assert ran == 2
 

@@ -11,13 +11,12 @@ need no shared file system. Dask is an optional extra: ``pip install -e '.[dask]
 
 from __future__ import annotations
 
-import hashlib
 import os
 from contextlib import contextmanager
 from importlib.metadata import version
-from pathlib import Path
 
 from marinebench.errors import ClusterError
+from marinebench.provenance import package_digest
 
 WORKER_TRIM_THRESHOLD = 2**30  # bytes; glibc keeps freed memory below this instead of returning it at once
 
@@ -54,16 +53,6 @@ def dask_client(address: str, workers: int | None = None, timeout: float = 10.0)
             cluster.close()
 
 
-def source_digest() -> str:
-    """SHA-256 over the marinebench package's Python files (relative names and bytes)."""
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        h.update(path.relative_to(root).as_posix().encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()
-
-
 def check_workers(client, timeout: float = 10.0) -> None:
     """Refuse a cluster without workers, or whose workers cannot import marinebench or run other code than
     this process. ``importlib.metadata.version`` is sent first because it unpickles on any worker, where a
@@ -77,8 +66,8 @@ def check_workers(client, timeout: float = 10.0) -> None:
     if missing:
         raise ClusterError(f"--dask: marinebench is not installed on {len(missing)} of {len(installed)} worker(s) "
                            f"(e.g. {missing[0]}); install this marinebench there")
-    mine = source_digest()
-    digests = client.run(source_digest, on_error="return")
+    mine = package_digest()
+    digests = client.run(package_digest, on_error="return")
     differ = sorted(w for w, d in digests.items() if d != mine)
     if differ:
         raise ClusterError(f"--dask: {len(differ)} of {len(digests)} worker(s) run another marinebench source than this "

@@ -352,21 +352,20 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
                 client=None) -> tuple[pd.DataFrame, float, int]:
     """Run the sweep's runs in chunks, saving each chunk's metrics in ``.<target>.partial/``.
 
-    An interrupted sweep resumes: chunks already on disk for the same experiment and the same code (a hash of
-    the resolved config and of marinebench's source files) are loaded, not rerun. Runs are independent of the batch they are in (per-run
+    An interrupted sweep resumes: chunks already on disk for the same inputs (``provenance.inputs_key``: the
+    resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not rerun. Runs are independent of the batch they are in (per-run
     seeding), so chunking does not change any number. With a Dask ``client`` (``distributed.Client``) the
     unfinished chunks are submitted to its workers at once and each is saved here as it arrives, so the
     numbers are the same as in one process and an interrupted distributed sweep resumes the same way.
     Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
     """
-    import hashlib
     import shutil
     import uuid
 
-    from marinebench.experiments.cluster import source_digest
+    from marinebench.provenance import inputs_key
     from marinebench.results.writer import atomic_write_text
 
-    key = hashlib.sha256((exp.model_dump_json() + source_digest()).encode()).hexdigest()
+    key = inputs_key(exp)
     partial = target.parent / f".{target.name}.partial"
     stale = partial.exists() and (
         not (partial / "key").exists() or (partial / "key").read_text().strip() != key

@@ -8,6 +8,7 @@ import yaml
 
 from marinebench.experiments.runner import RunResult
 from marinebench.plotting.figures import timeseries, tracking
+from marinebench.provenance import inputs_key
 from marinebench.results.claims import ClaimResult, manifest_entries
 from marinebench.results.claims import evaluate as evaluate_claims
 from marinebench.results.claims import markdown as claims_markdown
@@ -72,6 +73,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
         (tmp / "manifest.json").write_text(
             manifest(
                 experiment=exp.name,
+                inputs_key=inputs_key(exp),
                 config_files={k or "experiment": str(v) for k, v in sources.items()},
                 seed=exp.seed,
                 seeds=exp.seeds,
