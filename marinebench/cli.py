@@ -214,8 +214,11 @@ def sweep(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
+    grid: Annotated[bool, typer.Option(help="every combination of two parameters (--n per axis, default 11) instead of "
+                                       "one at a time: a matrix per group in table.md, heat maps, no claims")] = False,
 ) -> None:
     """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
+    With --grid, two parameters over every combination (param2, param2_value).
 
     Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches.
     With --dask the batches run in parallel on Dask workers, with the same numbers."""
@@ -223,7 +226,9 @@ def sweep(
     from contextlib import nullcontext
 
     from marinebench.experiments.cluster import dask_client, describe
+    from marinebench.experiments.grid import grid_figure, grid_table
     from marinebench.experiments.sweep import (
+        GRID_N,
         discard_partial,
         run_chunked,
         sweep_claims,
@@ -248,14 +253,14 @@ def sweep(
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     try:
         base, _ = _load(config, set_ or [], seed, seeds)
-        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides)
+        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
         from marinebench.loading import preflight
 
         preflight(exp, config)
     except MarinebenchError as exc:
         fail(str(exc))
     target = (out_dir if out_dir is not None else Path("results")) / (
-        config.stem + sweep_suffix(base, params, groups, n, horizon, overrides))
+        config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     t0 = _time.perf_counter()
     try:
         with dask_client(dask, workers) if dask else nullcontext() as client, Progress(
@@ -270,20 +275,21 @@ def sweep(
     except MarinebenchError as exc:
         fail(str(exc))
     shown = base.sweep.shown
-    claims = sweep_claims(metrics, base.sweep)
+    claims = [] if grid else sweep_claims(metrics, base.sweep)  # the claims are about one-at-a-time curves
+    table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
-        (tmp / "table.md").write_text("\n".join(sweep_table(metrics, metric, base.sweep) for metric in shown))
+        (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
         if claims:
             (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
         (tmp / "figures").mkdir()
-        sweep_figure(metrics, shown, base, tmp / "figures" / "sweep.png")
+        figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
         (tmp / "manifest.json").write_text(manifest(
             experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)}, overrides=set_ or [],
             seed=exp.seed, seeds=exp.seeds,
             runs=len(exp.variants) * exp.seeds,
-            params=params, n=n or base.sweep.n, groups=gnss or "all", horizon=exp.scenario.horizon,
+            params=params, grid=grid, n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
             wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import itertools
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,21 +30,27 @@ from marinebench.errors import ClusterError, ConfigError
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
+GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
+
 
 def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = None, n: int | None = None,
-                 horizon: float | None = None, overrides: Sequence[str] = ()) -> str:
+                 horizon: float | None = None, overrides: Sequence[str] = (), grid: bool = False) -> str:
     """``_sweep`` and what sets this sweep apart from the config's full one-seed sweep, so that none replaces
     another's folder: the parameters and world groups swept when only some of the config's (in the config's
     order), ``_n<N>`` for another number of points, ``_<T>s`` for another horizon, the command line's
     ``overrides`` (``--set key=value`` and ``--seed``, see :func:`override_tags`) and ``_<seeds>seeds`` for a
     Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``,
-    ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``). ``exp`` is the config's experiment (its ``sweep`` section and
-    seeds)."""
+    ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``). A grid sweep adds ``_grid`` and its two
+    parameters in the order given (``_sweep_grid_k_eps``), ``_n<N>`` when not :data:`GRID_N` points per axis.
+    ``exp`` is the config's experiment (its ``sweep`` section and seeds)."""
     spec = exp.sweep
-    tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
+    if grid:
+        tags = ["grid", *params]
+    else:
+        tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
     if groups and set(groups) < set(spec.groups):
         tags += [g for g in spec.groups if g in groups]
-    if n is not None and n != spec.n:
+    if n is not None and n != (GRID_N if grid else spec.n):
         tags.append(f"n{n}")
     own = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario.horizon
     if horizon is not None and horizon != own:
@@ -70,46 +77,58 @@ def override_tags(overrides: Sequence[str], limit: int = 60) -> list[str]:
 
 
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
-                     horizon: float | None, file: Path, overrides: Sequence[str] = ()) -> Experiment:
+                     horizon: float | None, file: Path, overrides: Sequence[str] = (), grid: bool = False) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
 
+    One at a time (default): ``n`` values of each parameter, the others at the variant's settings; every run
+    is tagged ``param``, ``param_value`` and ``gnss`` (its world group). ``grid``: every combination of the
+    ``n`` values (default :data:`GRID_N`) of exactly two parameters, tagged also ``param2``, ``param2_value``.
     The experiment (and its output folder) is named by :func:`sweep_suffix`: a Monte-Carlo sweep, or one of
     some of the parameters or groups, with other points, another horizon or command-line ``overrides``, does
     not replace the full sweep."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
-    name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides)
+    name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides, grid)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     unknown = [p for p in params if p not in spec.params]
     if unknown:
         raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}; sweepable: {sorted(spec.params)}")
+    if grid and (len(params) != 2 or params[0] == params[1]):
+        raise ConfigError("--grid", "", f"a grid sweep takes two different parameters, got {params} ({file})")
     groups = groups or list(spec.groups)
     bad = [g for g in groups if g not in spec.groups]
     if bad:
         raise ConfigError(file, "sweep.groups", f"unknown group(s) {bad}; available: {sorted(spec.groups)}")
     base = next(v for v in exp.variants if v.name == spec.variant)
-    n = n or spec.n
+    n = n or (GRID_N if grid else spec.n)
     variants = []
-    for p in params:
-        ps = spec.params[p]
+    for axes in [params] if grid else [[p] for p in params]:
         settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
-        if _get(settings, _path(ps.key)) is _MISSING:
-            raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
-                              f"(an observer field, or a path under observer. or controller.)")
-        for key, value in ps.fixed.items():
-            _set(settings, _path(key), value)
-        for i, value in enumerate(ps.values(n)):
+        for p in axes:
+            ps = spec.params[p]
+            if _get(settings, _path(ps.key)) is _MISSING:
+                raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
+                                  f"(an observer field, or a path under observer. or controller.)")
+            for key, value in ps.fixed.items():
+                _set(settings, _path(key), value)
+        for index in itertools.product(*(range(n) for _ in axes)):
+            values = [float(spec.params[p].values(n)[i]) for p, i in zip(axes, index)]
             point = copy.deepcopy(settings)
-            _set(point, _path(ps.key), float(value))
+            for p, value in zip(axes, values):
+                _set(point, _path(spec.params[p].key), value)
+            tags = {"param": axes[0], "param_value": values[0]}
+            if grid:
+                tags |= {"param2": axes[1], "param2_value": values[1]}
             for g in groups:
                 try:
                     variants.append(Variant.model_validate({
-                        **point, "name": f"{p}_{i:03d}_{g}", "world": spec.groups[g],
-                        "tags": {"param": p, "param_value": float(value), "gnss": g}}))
+                        **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
+                        "world": spec.groups[g], "tags": tags | {"gnss": g}}))
                 except ValidationError as exc:
-                    raise ConfigError(file, f"sweep.params.{p}",
-                                      f"{value:g}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
+                    at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
+                    raise ConfigError(file, f"sweep.params.{axes[-1] if len(axes) == 1 else ','.join(axes)}",
+                                      f"{at}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
     update = {"variants": variants, "figures": [], "table": None, "sweep": None,
               "name": name}
     if horizon is not None:

@@ -1,0 +1,134 @@
+"""Two-parameter grid sweeps (``marinebench sweep P1 P2 --grid``): how two tunings interact.
+
+A one-at-a-time sweep (Torben et al. Fig. 3) moves each parameter with the others at the paper's values;
+the grid runs every combination of two (``sweep_experiment(..., grid=True)``: runs tagged ``param``,
+``param_value``, ``param2``, ``param2_value``, ``gnss``), in one batch like any sweep. Here: its
+``table.md`` (the seed-mean KPI as a matrix per world group and signal, with its lowest point and the
+KPI's spread along each axis) and its figure (one heat map per metric and group, the lowest point
+starred and the swept variant's own tuning marked).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.colors import LogNorm
+
+from marinebench.config import Experiment, SweepSpec
+
+Surfaces = dict[tuple[str, str], pd.DataFrame]
+
+
+def grid_surfaces(metrics: pd.DataFrame, metric: str, signals: list[str] | None = None) -> Surfaces:
+    """The seed-mean KPI per (group, signal): rows ``param_value``, columns ``param2_value`` (sorted); NaN where
+    every seed of a point diverged (diverged runs are left out of the mean)."""
+    df = metrics[(metrics["metric"] == metric) & (metrics["signal"].isin(signals) if signals else True)].copy()
+    df.loc[df["status"] != "ok", "value"] = np.nan
+    order = [{v: i for i, v in enumerate(dict.fromkeys(df[c]))} for c in ("gnss", "signal")]
+    groups = sorted(df.groupby(["gnss", "signal"], sort=False), key=lambda kd: [o[k] for o, k in zip(order, kd[0])])
+    return {key: d.pivot_table(index="param_value", columns="param2_value", values="value", aggfunc="mean", dropna=False)
+            .sort_index().sort_index(axis=1) for key, d in groups}
+
+
+def _axes(metrics: pd.DataFrame) -> tuple[str, str]:
+    return str(metrics["param"].iloc[0]), str(metrics["param2"].iloc[0])
+
+
+def tuning(exp: Experiment, param: str) -> float | None:
+    """The swept variant's own value of a sweep parameter, if it is a number inside the range; None when the
+    parameter has ``fixed`` settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
+    from marinebench.experiments.sweep import _get, _path
+
+    ps = exp.sweep.params[param]
+    if ps.fixed:
+        return None
+    base = next(v for v in exp.variants if v.name == exp.sweep.variant)
+    value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), _path(ps.key))
+    return float(value) if isinstance(value, int | float) and ps.range[0] <= value <= ps.range[1] else None
+
+
+def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around the grid values: midpoints (geometric for log spacing) and as far again at the ends."""
+    x = np.log(centres) if log else centres
+    mid = (x[1:] + x[:-1]) / 2
+    edges = np.concatenate([[2 * x[0] - mid[0]], mid, [2 * x[-1] - mid[-1]]]) if len(x) > 1 else np.array([x[0] - 1, x[0] + 1])
+    return np.exp(edges) if log else edges
+
+
+def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec) -> str:
+    """table.md of a grid sweep: per group and signal the matrix of the seed-mean ``metric``, its lowest point,
+    and how much each parameter moves it (the largest ratio max/min along a row or column)."""
+    p1, p2 = _axes(metrics)
+    surfaces = grid_surfaces(metrics, metric, spec.signals)
+    n_seeds = int(metrics["seed"].nunique())
+    lines = [f"## Grid: {metric} over {p1} × {p2}", "",
+             (f"Mean over {n_seeds} seeds" if n_seeds > 1 else "One run per point (seed index 0)")
+             + f"; rows {p1}, columns {p2}. Diverged runs are left out of the mean (– where all diverged).", ""]
+    if not surfaces:
+        return "\n".join([*lines, f"No values of metric '{metric}'.", ""])
+    group = "group" if set(spec.groups) == {"default"} else "gnss"
+    summary = [f"| {group} | signal | lowest | at {p1} | at {p2} | highest | spread along {p1} | spread along {p2} |",
+               "|---|---|---|---|---|---|---|---|"]
+    blocks = []
+    for (g, sig), m in surfaces.items():
+        values = m.to_numpy(dtype=float)
+        if np.isnan(values).all():
+            summary.append(f"| {g} | {sig} | – | – | – | – | – | – |")
+            continue
+        i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        along_p1 = np.nanmax(np.nanmax(values, axis=0) / np.nanmin(values, axis=0))  # down a column: p1 moves
+        along_p2 = np.nanmax(np.nanmax(values, axis=1) / np.nanmin(values, axis=1))
+        summary.append(f"| {g} | {sig} | {values[i, j]:.4g} | {m.index[i]:.4g} | {m.columns[j]:.4g} | "
+                       f"{np.nanmax(values):.4g} | {along_p1:.3g}× | {along_p2:.3g}× |")
+        head = f"| {p1} \\ {p2} | " + " | ".join(f"{c:.3g}" for c in m.columns) + " |"
+        rows = [f"| {r:.3g} | " + " | ".join("–" if np.isnan(x) else f"{x:.4g}" for x in row) + " |"
+                for r, row in zip(m.index, values)]
+        blocks += ["", f"### {metric}, {group} {g}, signal {sig}", "", head, "|---" * (len(m.columns) + 1) + "|", *rows]
+    notes = ["", (f"Spread along a parameter: the largest ratio of the highest to the lowest {metric} as that "
+                  "parameter moves with the other held.")]
+    return "\n".join([*lines, *summary, *notes, *blocks]) + "\n"
+
+
+def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
+    """One heat map per metric (rows) and group and signal (columns): the seed-mean KPI over the grid on a log
+    colour scale, its lowest point starred, the swept variant's own tuning marked ×."""
+    p1, p2 = _axes(metrics)
+    per_metric = {metric: grid_surfaces(metrics, metric, exp.sweep.signals) for metric in shown}
+    cols = max(len(s) for s in per_metric.values())
+    fig, axes = plt.subplots(len(shown), cols, figsize=(4.6 * cols, 3.8 * len(shown)), squeeze=False)
+    own = (tuning(exp, p1), tuning(exp, p2))
+    for row, (metric, surfaces) in enumerate(per_metric.items()):
+        for ax in axes[row, len(surfaces):]:
+            ax.axis("off")
+        for ax, ((g, sig), m) in zip(axes[row], surfaces.items()):
+            values = m.to_numpy(dtype=float)
+            positive = values[np.isfinite(values) & (values > 0)]
+            norm = LogNorm(positive.min(), positive.max()) if positive.size and positive.min() < positive.max() else None
+            # x: the second parameter, y: the first, as in the table (rows p1, columns p2)
+            log = [exp.sweep.params[p].spacing == "log" for p in (p2, p1)]
+            mesh = ax.pcolormesh(_edges(m.columns.to_numpy(dtype=float), log[0]), _edges(m.index.to_numpy(dtype=float), log[1]),
+                                 values, cmap="viridis", norm=norm)
+            fig.colorbar(mesh, ax=ax, label=metric)
+            if np.isfinite(values).any():
+                i, j = np.unravel_index(np.nanargmin(values), values.shape)
+                ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
+            if None not in own:
+                ax.plot(own[1], own[0], "x", color="red", ms=9, mew=2, label=f"{exp.sweep.variant} ({own[0]:g}, {own[1]:g})")
+            for axis, p in (("x", p2), ("y", p1)):
+                if exp.sweep.params[p].spacing == "log":
+                    getattr(ax, f"set_{axis}scale")("log")
+                getattr(ax, f"set_{axis}label")(exp.sweep.params[p].label or p)
+            ax.set_title(f"{metric}: {g}" + (f", {sig}" if sig != "z" else ""), fontsize=9)
+            ax.legend(fontsize=7, loc="best")
+    n_seeds = int(metrics["seed"].nunique())
+    fig.suptitle(f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else ""),
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
