@@ -36,6 +36,16 @@ def test_grid_points_are_every_combination_with_both_values_tagged():
         sweep_experiment(base, ["k"], None, 3, None, CFG, grid=True)
 
 
+def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range():
+    from marinebench.experiments.grid import tuning
+
+    torben, _ = load_experiment(CFG)
+    assert (tuning(torben, "k"), tuning(torben, "delta")) == (0.7, 2.5)
+    assert tuning(torben, "eps") is None  # c_eps scales the parameter's fixed eps: the variant's own eps is no c_eps
+    tijjani, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    assert (tuning(tijjani, "yaw_alpha"), tuning(tijjani, "yaw_k0")) == (1.1, 0.72)  # Table II, not set in the file
+
+
 def synthetic() -> pd.DataFrame:
     """J = (1 + a) (2 + b) (1 + 0.1 seed) on a 3 x 4 grid, two seeds; one run of the corner a=0, b=0 diverged."""
     rows = []
@@ -62,13 +72,15 @@ def test_grid_table_on_a_known_surface():
     # those through that corner: 6.3 / 2 along a (column b = 0), 5.25 / 2 along b (row a = 0)
     assert "| default | z | 2 | 0 | 0 | 15.75 | 3.15× | 2.62× |" in table
     assert "| a \\ b | 0 | 1 | 2 | 3 |" in table and "| 2 | 6.3 | 9.45 | 12.6 | 15.75 |" in table
+    flat = grid_table(m.assign(value=1.0), "J", spec)  # a parameter that does not reach the metric: no matrix
+    assert "| default | z | 1 | (flat) | (flat) | 1 | 1× | 1× |" in flat and "| a \\ b |" not in flat
 
 
 def test_cli_grid_sweep_writes_matrix_heat_map_and_no_claims(tmp_path):
-    res = CliRunner().invoke(app, ["sweep", "k", "delta", "--grid", "--config", str(CFG), "--n", "2", "--horizon", "20",
+    res = CliRunner().invoke(app, ["sweep", "k", "delta", "--grid", "--config", str(CFG), "--n", "2", "--horizon", "60",
                                    "--gnss", "dgnss", "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
-    d = tmp_path / "torben_fig3_sweep_grid_k_delta_dgnss_n2_20s"
+    d = tmp_path / "torben_fig3_sweep_grid_k_delta_dgnss_n2_60s"
     m = pd.read_csv(d / "metrics.csv")
     j = m[m["metric"] == "J_tot"]
     assert len(j) == 4 and set(j["param"]) == {"k"} and set(j["param2"]) == {"delta"}

@@ -49,7 +49,10 @@ def tuning(exp: Experiment, param: str) -> float | None:
     if ps.fixed:
         return None
     base = next(v for v in exp.variants if v.name == exp.sweep.variant)
-    value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), _path(ps.key))
+    path = _path(ps.key)
+    value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
+    if value is None and path[0] == "controller" and len(path) == 3 and path[1] in ("depth", "yaw"):
+        value = getattr(base.controller.gains()[("depth", "yaw").index(path[1])], path[2], None)  # Table II's default
     return float(value) if isinstance(value, int | float) and ps.range[0] <= value <= ps.range[1] else None
 
 
@@ -82,6 +85,9 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec) -> str:
             summary.append(f"| {g} | {sig} | – | – | – | – | – | – |")
             continue
         i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        if np.nanmax(values) == np.nanmin(values):
+            summary.append(f"| {g} | {sig} | {values[i, j]:.4g} | (flat) | (flat) | {values[i, j]:.4g} | 1× | 1× |")
+            continue
         along_p1 = np.nanmax(np.nanmax(values, axis=0) / np.nanmin(values, axis=0))  # down a column: p1 moves
         along_p2 = np.nanmax(np.nanmax(values, axis=1) / np.nanmin(values, axis=1))
         summary.append(f"| {g} | {sig} | {values[i, j]:.4g} | {m.index[i]:.4g} | {m.columns[j]:.4g} | "
@@ -115,7 +121,7 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             mesh = ax.pcolormesh(_edges(m.columns.to_numpy(dtype=float), log[0]), _edges(m.index.to_numpy(dtype=float), log[1]),
                                  values, cmap="viridis", norm=norm)
             fig.colorbar(mesh, ax=ax, label=metric)
-            if np.isfinite(values).any():
+            if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):  # a flat surface has no lowest point
                 i, j = np.unravel_index(np.nanargmin(values), values.shape)
                 ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
             if None not in own:
