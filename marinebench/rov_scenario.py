@@ -175,7 +175,8 @@ class RovWorld:
         n = int(np.ceil(sc.horizon / sc.dt)) + 2
         draws = np.array([g.standard_normal((n, 3)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
         std = [sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg), np.deg2rad(sc.sensors.gyro_noise_dps)]
-        self.noise = draws[where] * np.array(std)  # depth, yaw, yaw rate
+        # per seed (runs of a seed share its draws; indexed per step, not copied per run): depth, yaw, yaw rate
+        self.noise, self.seed_index = draws * np.array(std), where
         self.random_load = np.zeros((B, 2))
         if sc.random_load is not None:
             rl = sc.random_load
@@ -186,7 +187,7 @@ class RovWorld:
             v[:, 0] = xi[:, 0]  # stationary start, then eq. (48) with the driving std giving a unit stationary std
             for n in range(1, m):
                 v[:, n] = gm_step(v[:, n - 1], np.sqrt(1 - a * a), 1 / rl.time_constant, rl.period, xi[:, n])
-            self.load_sequence = v[where] * np.array(rl.std)  # (B, m, 2)
+            self.load_sequence = v * np.array(rl.std)  # (seeds, m, 2), indexed by seed_index
             self.load_every = round(rl.period / sc.dt)
         self.groups = [(spec.build(len(idx)), np.asarray(idx), spec.scale(self.plant.inertia)) for spec, idx in controllers]
         self.feedforward = [spec.feedforward_mask() for spec, _ in controllers]
@@ -243,7 +244,7 @@ class RovWorld:
 
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
         if self.sc.random_load is not None:
-            self.random_load = self.load_sequence[:, k // self.load_every]
+            self.random_load = self.load_sequence[self.seed_index, k // self.load_every]
         sampled = [ch for ch, every in enumerate(self.every) if k % every == 0]
         control = k % self.control_every == 0
         if not (sampled or control):
@@ -255,13 +256,13 @@ class RovWorld:
             self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
             self.at_sample[1, :, ch] = cdo[:, ch, 0]
             self.at_sample[2, :, ch] = eo[:, ch, 0]
-            y = x[:, ch] + self.noise[:, k, ch]
+            y = x[:, ch] + self.noise[self.seed_index, k, ch]
             source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
             if source == "difference":
                 if k > 0:
                     self.ydot[:, ch] = (y - self.y[:, ch]) / (self.every[ch] * self.sc.dt)
             else:
-                self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[:, k, 2] if source == "gyro" else 0.0)
+                self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[self.seed_index, k, 2] if source == "gyro" else 0.0)
             self.y[:, ch] = y
             w[:, ch] = y  # the CDO's predictor restarts from each new sample
         if control:
