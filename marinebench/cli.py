@@ -114,29 +114,36 @@ def run(
         raise typer.Exit(1)
 
 
-def _skip_current(loaded: list, base: Path, quiet: bool) -> tuple[list, int]:
-    """``run --resume``: the experiments whose ``manifest.json`` lacks this run's inputs key (to run), and the
-    number of failing claims the others' manifests record."""
+def _up_to_date(exp, target: Path, quiet: bool) -> int | None:
+    """``--resume``: None when ``target`` was not written from the same inputs as ``exp`` (its manifest's
+    ``inputs_key``); otherwise says so and returns the number of failing claims the manifest records."""
     import json
 
     from marinebench.provenance import inputs_key
 
+    try:
+        stored = json.loads((target / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if stored.get("inputs_key") != inputs_key(exp):
+        return None
+    claims = stored.get("claims", [])
+    if not quiet:
+        verdict = f", {sum(c['holds'] for c in claims)} of {len(claims)} claims hold" if claims else ""
+        out.print(f"{exp.name}: up to date (same inputs){verdict} -> {target}", markup=False)
+    return sum(not c["holds"] and "not_checked" not in c for c in claims)
+
+
+def _skip_current(loaded: list, base: Path, quiet: bool) -> tuple[list, int]:
+    """``run --resume``: the experiments not :func:`_up_to_date` (to run), and the failing claims of the others."""
     todo, failing = [], 0
     for item in loaded:
         path, exp, _ = item
-        target = base / path.stem
-        try:
-            stored = json.loads((target / "manifest.json").read_text())
-        except (OSError, ValueError):
-            stored = {}
-        if stored.get("inputs_key") != inputs_key(exp):
+        known = _up_to_date(exp, base / path.stem, quiet)
+        if known is None:
             todo.append(item)
-            continue
-        claims = stored.get("claims", [])
-        failing += sum(not c["holds"] and "not_checked" not in c for c in claims)
-        if not quiet:
-            verdict = f", {sum(c['holds'] for c in claims)} of {len(claims)} claims hold" if claims else ""
-            out.print(f"{exp.name}: up to date (same inputs){verdict} -> {target}", markup=False)
+        else:
+            failing += known
     return todo, failing
 
 
@@ -216,6 +223,8 @@ def sweep(
                                                  "after everything is written")] = False,
     grid: Annotated[bool, typer.Option(help="every combination of two parameters (--n per axis, default 11) instead of "
                                        "one at a time: a matrix per group in table.md, heat maps, no claims")] = False,
+    resume: Annotated[bool, typer.Option(help="do nothing when the folder was written from the same inputs (manifest's "
+                                         "inputs_key); an interrupted sweep resumes from its batches anyway")] = False,
 ) -> None:
     """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
     With --grid, two parameters over every combination (param2, param2_value).
@@ -261,6 +270,12 @@ def sweep(
         fail(str(exc))
     target = (out_dir if out_dir is not None else Path("results")) / (
         config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
+    known = _up_to_date(exp, target, quiet) if resume else None
+    if known is not None:
+        if require_claims and known:
+            err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
+            raise typer.Exit(1)
+        return
     t0 = _time.perf_counter()
     try:
         with dask_client(dask, workers) if dask else nullcontext() as client, Progress(

@@ -169,6 +169,11 @@ def test_sweep_cli_tiny_grid(tmp_path):
     d2 = tmp_path / "torben_fig3_sweep_k_dgnss_n2_20s_2seeds"  # nor does a Monte-Carlo sweep of one group
     assert sorted(pd.read_csv(d2 / "metrics.csv")["seed"].unique()) == [0, 1] and (d / "metrics.csv").exists()
     assert "2 runs per point" in (d2 / "table.md").read_text()
+    written = (d2 / "manifest.json").stat().st_mtime_ns
+    again = CliRunner().invoke(app, ["sweep", "k", "--config", str(cfg), "--n", "2", "--horizon", "20", "--gnss", "dgnss",
+                                     "--seeds", "2", "--out", str(tmp_path), "--resume"])
+    assert again.exit_code == 0 and "up to date (same inputs)" in again.output
+    assert (d2 / "manifest.json").stat().st_mtime_ns == written
     bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "unknown parameter" in bad.output and "sweepable" in bad.output
 
