@@ -26,7 +26,7 @@ def package_digest() -> str:
 
 def custom_sources(exp) -> list[str]:
     """The ``source`` of every custom observer and controller class the experiment's variants use."""
-    parts = [p for v in exp.variants for p in (v.observer, getattr(v, "controller", None)) if p is not None]
+    parts = [p for v in exp.variants for p in (v.observer, v.controller) if p is not None]
     return sorted({p.source for p in parts if p.kind == "custom"})
 
 

@@ -112,8 +112,9 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                                   f"(an observer field, or a path under observer. or controller.)")
             for key, value in ps.fixed.items():
                 _set(settings, _path(key), value)
+        grids = [spec.params[p].values(n) for p in axes]
         for index in itertools.product(*(range(n) for _ in axes)):
-            values = [float(spec.params[p].values(n)[i]) for p, i in zip(axes, index)]
+            values = [float(points[i]) for points, i in zip(grids, index)]
             point = copy.deepcopy(settings)
             for p, value in zip(axes, values):
                 _set(point, _path(spec.params[p].key), value)
