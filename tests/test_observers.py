@@ -4,10 +4,12 @@
 import numpy as np
 import pytest
 
-from marinebench.observers.base import wrap_angle
+from marinebench.experiments.runner import noise_parts
+from marinebench.observers.base import chain_response, wrap_angle
 from marinebench.observers.bejarano import BejaranoObserver, BejaranoTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 from marinebench.scenario import OpenLoopASV, Scenario, stream_rngs
+from marinebench.sensors.noise import BandLimitedUniform
 from marinebench.sim.engine import ObserverGroup, simulate
 from marinebench.sim.recorders import ErrorMoments
 
@@ -61,13 +63,12 @@ def test_wrap_angle():
 NOISE = {"kind": "bandlimited_uniform", "bound": 0.2, "f_low": 0.1, "f_high": 0.5, "n_components": 40, "rms": 0.0327}
 
 
-def chain_response(gains, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Velocity and disturbance estimates of the 3-state chain ``x1' = x2 + l1 e, x2' = x3 + l2 e, x3' = l3 e``
-    (e = y - x1) per unit position measurement at ``omega``: ``(l2 s + l3) s / p(s)`` and ``l3 s^2 / p(s)``."""
-    l1, l2, l3 = gains
-    s = 1j * omega
-    p = s**3 + l1 * s**2 + l2 * s + l3
-    return (l2 * s + l3) * s / p, l3 * s**2 / p
+def at_rest(noise=None) -> Scenario:
+    """A vessel at rest at the origin, no input, no environment; position noise ``noise`` (or none)."""
+    zero = {**CONSTANT, "value": 0.0}
+    return Scenario(name="rest", horizon=40.0, dt=0.005, initial={"eta": (0.0, 0.0, 0.0)},
+                    sensors={"position_noise": noise} if noise else {}, inputs={"F_u": zero, "tau_r": zero},
+                    disturbances={"F_wu": zero, "F_wv": zero, "tau_wr": zero})
 
 
 def test_noisy_errors_are_the_observers_noise_transfer_sampled_by_the_multisine():
@@ -76,9 +77,7 @@ def test_noisy_errors_are_the_observers_noise_transfer_sampled_by_the_multisine(
     response of that chain to the seed's multisine components, computed on the same time grid. This checks the
     noise generator, both observers' positional channels with their designed gains, the engine and the std
     recorder against closed-form linear theory (README, Table IV)."""
-    zero = {**CONSTANT, "value": 0.0}
-    sc = Scenario(name="rest", horizon=40.0, dt=0.005, initial={"eta": (0.0, 0.0, 0.0)}, sensors={"position_noise": NOISE},
-                  inputs={"F_u": zero, "tau_r": zero}, disturbances={"F_wu": zero, "F_wv": zero, "tau_wr": zero})
+    sc = at_rest(NOISE)
     seeds = np.array([0, 1])
     liu = [LiuEsoTuning(eps=0.2), LiuEsoTuning(eps=0.1)]
     prop = [BejaranoTuning(delta_psi1=d, delta_p1=d, k_omega=1, k_n=1) for d in (1.2, 2.2)]
@@ -99,3 +98,47 @@ def test_noisy_errors_are_the_observers_noise_transfer_sampled_by_the_multisine(
         for name, H in zip(("u", "sigma_u"), chain_response(gains[run // 2], omega)):
             e = (noise.amplitude * np.abs(H) * np.sin(np.outer(t, omega) + phase + np.angle(H))).sum(axis=1)
             assert std[name][run] == pytest.approx(e.std(), rel=1e-5), (run, name)
+
+
+@pytest.mark.parametrize("spacing", ["uniform", "log"])
+def test_response_std_is_the_expected_std_over_the_noise_draws(spacing):
+    """A multisine's steady-state response has variance rms^2 mean_k |H(omega_k)|^2; its mean over many draws of
+    the component frequencies is what ``response_std`` integrates."""
+    noise = BandLimitedUniform(**{**NOISE, "spacing": spacing})
+    gains = (3 / 0.2, 3 / 0.2**2, 1 / 0.2**3)
+    batch = noise.sample([np.random.default_rng(s) for s in range(400)], 1)
+    for i in range(2):
+        H = chain_response(gains, batch.omega)[i]  # (draws, 1, K)
+        simulated = np.sqrt(np.mean(np.sum((noise.std * np.sqrt(2 / noise.n_components) * np.abs(H)) ** 2 / 2, axis=-1)))
+        assert noise.response_std(lambda w, i=i: chain_response(gains, w)[i]) == pytest.approx(simulated, rel=0.01)
+
+
+def test_noise_part_of_a_very_fast_observer_is_the_noise_derivative():
+    """Closed form: an observer far faster than the band passes the noise's derivative into its velocity
+    estimate, whose std is rms sqrt(E omega^2) with omega uniform over the band."""
+    eps = 1e-3
+    parts = noise_parts(at_rest(NOISE), {"u": (3 / eps, 3 / eps**2, 1 / eps**3)})
+    w1, w2 = 2 * np.pi * NOISE["f_low"], 2 * np.pi * NOISE["f_high"]
+    assert parts["noise_part_std_u"] == pytest.approx(NOISE["rms"] * np.sqrt((w2**3 - w1**3) / (3 * (w2 - w1))), rel=1e-3)
+    assert noise_parts(at_rest(), {"u": (1.0, 1.0, 1.0)}) == {}
+
+
+def test_manifest_designs_carry_each_observers_noise_part(tmp_path):
+    """``design_summary`` (the manifest's ``designs``) predicts, per variant and axis, the noise part of the velocity and
+    disturbance errors from the designed gains: Liu's from (3/eps, 3/eps^2, 1/eps^3), Bejarano's from -L_pz."""
+    import marinebench as mb
+    from marinebench.experiments.runner import design_summary
+
+    from .conftest import write_tiny
+
+    exp = mb.load(write_tiny(tmp_path))
+    designs = design_summary(exp)
+    noise = exp.scenario.sensors.position_noise
+    liu = designs["liu_eps0.2"]
+    assert liu["noise_part_std_u"] == liu["noise_part_std_v"] == noise.response_std(lambda w: chain_response(liu["gains"], w)[0])
+    prop = designs["proposed_d1.2"]
+    L = -np.asarray(prop["L_pz"])
+    for axis, rows, col in (("u", [0, 2, 4], 0), ("v", [1, 3, 5], 1)):
+        for i, name in enumerate((axis, f"sigma_{axis}")):
+            assert prop[f"noise_part_std_{name}"] == noise.response_std(lambda w, i=i, g=L[rows, col]: chain_response(g, w)[i])
+    assert prop["noise_part_std_sigma_u"] < liu["noise_part_std_sigma_u"]  # delta = 1.2 filters sigma more than eps = 0.2

@@ -20,6 +20,7 @@ from marinebench.metrics.stats import mean_ci
 from marinebench.models.cybership2 import CyberShip2, linear_dp_model
 from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
+from marinebench.observers.base import chain_response
 from marinebench.observers.bejarano import BejaranoObserver
 from marinebench.observers.custom import observer_class
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
@@ -138,8 +139,21 @@ def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[Observ
     return groups
 
 
+def noise_parts(sc, chains: dict[str, np.ndarray]) -> dict[str, float]:
+    """Predicted std of the velocity and disturbance errors (``u``, ``sigma_u`` for axis ``u``; ``v``, ``sigma_v``)
+    that an observer's position channels, ``{axis: (l1, l2, l3)}``, make of the scenario's band-limited position
+    noise alone, at rest (linear theory, ``observers.base.chain_response``); empty where the world has no such
+    noise. Table IV's errors are mostly this part (README)."""
+    noise = getattr(getattr(sc, "sensors", None), "position_noise", None)
+    if getattr(noise, "kind", None) != "bandlimited_uniform":
+        return {}
+    return {f"noise_part_std_{name}": float(noise.response_std(lambda w, g=gains, i=i: chain_response(g, w)[i]))
+            for axis, gains in chains.items() for i, name in enumerate((axis, f"sigma_{axis}"))}
+
+
 def design_summary(exp: Experiment) -> dict[str, dict]:
-    """Designed gains and poles per variant, for the manifest."""
+    """Designed gains and poles per variant (and, on a noisy ASV world, the noise part of e_u, e_sigma_u),
+    for the manifest."""
     from marinebench.observers import bejarano
 
     out = {}
@@ -164,11 +178,13 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
                 "slowest_pole_psi": float(rot.poles.real.max()),
                 "slowest_pole_p": float(pos.poles.real.max()),
                 "fastest_pole_abs": float(max(np.abs(rot.poles).max(), np.abs(pos.poles).max())),
+                **noise_parts(exp.scenario, {"u": -pos.gain[[0, 2, 4], 0], "v": -pos.gain[[1, 3, 5], 1]}),  # -L_pz, eq. (26) at psi = 0
             }
         elif o.kind == "custom":
             out[v.name] = {"source": o.source, "sha256": source_digest(o.source), "params": o.params}
         elif o.kind == "liu_eso":
-            out[v.name] = {"gains": [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3], "mode": o.mode}
+            gains = [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3]
+            out[v.name] = {"gains": gains, "mode": o.mode, **(noise_parts(exp.scenario, {"u": gains, "v": gains}) if o.mode == "linear" else {})}
         elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)
             obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
             K1, K2, K3 = obs.classes[0]["K"]

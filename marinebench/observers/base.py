@@ -33,6 +33,20 @@ class BatchObserver(Protocol):
         """Largest |eigenvalue| of the error dynamics over the batch [rad/s] (for the dt check)."""
 
 
+def chain_response(gains, omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frequency responses of one positional channel of the open-loop ASV observers, linearised at rest.
+
+    At r = 0 both Liu's ESO and Bejarano's positional observer (eq. (14) with (26)) reduce per axis to the chain
+    ``x1' = x2 + l1 e, x2' = x3 + l2 e, x3' = l3 e`` with ``e = y - x1``; its velocity and disturbance estimates
+    per unit position measurement at ``omega`` [rad/s] are ``(l2 s + l3) s / p(s)`` and ``l3 s^2 / p(s)``,
+    ``p(s) = s^3 + l1 s^2 + l2 s + l3``. For a vessel at rest these are (minus) the transfers from position
+    noise to the errors e_u and e_sigma_u (Table IV's noise part; ``tests/test_observers.py``)."""
+    l1, l2, l3 = gains
+    s = 1j * np.asarray(omega, dtype=float)
+    p = s**3 + l1 * s**2 + l2 * s + l3
+    return (l2 * s + l3) * s / p, l3 * s**2 / p
+
+
 def wrap_angle(a: np.ndarray) -> np.ndarray:
     """Wrap angles to (-pi, pi]."""
     return np.pi - np.mod(np.pi - a, 2 * np.pi)
