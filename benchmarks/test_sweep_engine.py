@@ -1,9 +1,12 @@
 """Speed and memory of the batched engine on the Torben sweep (pytest-benchmark; not part of ``pytest``).
 
     pip install -e '.[bench]'
-    pytest benchmarks                                   # timings, the speed-up and the memory target
-    pytest benchmarks --benchmark-autosave              # keep this machine's timings ...
-    pytest benchmarks --benchmark-compare --benchmark-compare-fail=mean:15%   # ... and gate later commits on them
+    pytest benchmarks -n 0                              # timings, the speed-up and the memory target
+    pytest benchmarks -n 0 --benchmark-autosave         # keep this machine's timings ...
+    pytest benchmarks -n 0 --benchmark-compare --benchmark-compare-fail=mean:15%   # ... and gate later commits on them
+
+(``-n 0``: in one process; pyproject's pytest options spread test files over pytest-xdist workers, and
+pytest-benchmark does not time under xdist.)
 
 The targets are those of the sweep issue, checked as ratios measured in the same process (the machines are
 shared and noisy): the 600-run batch must be at least 10x faster per run than the plain per-run reference
