@@ -152,8 +152,8 @@ def noise_parts(sc, chains: dict[str, np.ndarray]) -> dict[str, float]:
 
 
 def design_summary(exp: Experiment) -> dict[str, dict]:
-    """Designed gains and poles per variant (and, on a noisy ASV world, the noise part of e_u, e_sigma_u),
-    for the manifest."""
+    """Designed gains and poles per variant (and, on a noisy ASV world, the noise part of each velocity and
+    disturbance error, ``noise_parts``), for the manifest."""
     from marinebench.observers import bejarano
 
     out = {}
