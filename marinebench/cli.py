@@ -222,7 +222,8 @@ def sweep(
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
     grid: Annotated[bool, typer.Option(help="every combination of two parameters (--n per axis, default 11) instead of "
-                                       "one at a time: a matrix per group in table.md, heat maps, no claims")] = False,
+                                       "one at a time: a matrix per group in table.md, heat maps, and each claim of sweep.claims mapped along "
+                                       "the slices of the other parameter (claims.md)")] = False,
     resume: Annotated[bool, typer.Option(help="do nothing when the folder was written from the same inputs (manifest's "
                                          "inputs_key); an interrupted sweep resumes from its batches anyway")] = False,
 ) -> None:
@@ -235,7 +236,14 @@ def sweep(
     from contextlib import nullcontext
 
     from marinebench.experiments.cluster import dask_client, describe
-    from marinebench.experiments.grid import grid_figure, grid_table
+    from marinebench.experiments.grid import (
+        grid_claims,
+        grid_claims_markdown,
+        grid_figure,
+        grid_manifest_entries,
+        grid_table,
+        tuning,
+    )
     from marinebench.experiments.sweep import (
         GRID_N,
         discard_partial,
@@ -258,6 +266,9 @@ def sweep(
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
         fail("--horizon: must be positive")
+    if grid and require_claims:
+        fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
+             "use it on a one-at-a-time sweep")
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     try:
@@ -290,7 +301,8 @@ def sweep(
     except MarinebenchError as exc:
         fail(str(exc))
     shown = base.sweep.shown
-    claims = [] if grid else sweep_claims(metrics, base.sweep)  # the claims are about one-at-a-time curves
+    claims = [] if grid else sweep_claims(metrics, base.sweep)
+    mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
     table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
@@ -298,6 +310,9 @@ def sweep(
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
         if claims:
             (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
+        if mapped:
+            own = {p: tuning(base, p) for p in params}
+            (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
         (tmp / "figures").mkdir()
         figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
         (tmp / "manifest.json").write_text(manifest(
@@ -309,10 +324,11 @@ def sweep(
             wall_time_s=round(wall, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),
             assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
-            claims=manifest_entries(claims)))
+            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
     discard_partial(target)
     if not quiet:
-        checked = f", {summary_line(claims)}" if claims else ""
+        checked = (f", {summary_line(claims)}" if claims else
+                   f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
                   f"({wall:.1f} s of simulation summed over the {ran} batch(es) run){checked} -> {target}", markup=False)
     failing = sum(c.fails for c in claims)

@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+from functools import cache
 from pathlib import Path
 
 
+@cache
 def package_digest() -> str:
-    """SHA-256 over the marinebench package's Python files (relative names and bytes)."""
+    """SHA-256 over the marinebench package's Python files (relative names and bytes), hashed once per process:
+    the source as this process found it, which is also the code it imported (a run or sweep asks several times)."""
     root = Path(__file__).resolve().parent
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):

@@ -1,15 +1,19 @@
 """Two-parameter grid sweeps (`sweep P1 P2 --grid`): the points, the table on a surface known in closed form,
 and the command end to end."""
 
+import json
+from types import SimpleNamespace
+
 import numpy as np
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
 
+from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.cli import app
 from marinebench.config import SweepParam, SweepSpec
 from marinebench.errors import ConfigError
-from marinebench.experiments.grid import grid_surfaces, grid_table
+from marinebench.experiments.grid import grid_claims, grid_claims_markdown, grid_surfaces, grid_table
 from marinebench.experiments.sweep import GRID_N, sweep_experiment, sweep_suffix
 from marinebench.loading import load_experiment
 
@@ -76,7 +80,33 @@ def test_grid_table_on_a_known_surface():
     assert "| default | z | 1 | (flat) | (flat) | 1 | 1× | 1× |" in flat and "| a \\ b |" not in flat
 
 
-def test_cli_grid_sweep_writes_matrix_heat_map_and_no_claims(tmp_path):
+def test_grid_claims_map_the_slices_of_the_other_parameter_where_a_claim_holds():
+    """J = (1 + a) (2.5 + b - a) (1 + 0.1 seed), group 'hi' twice group 'lo': along a (three points), J's rank
+    correlation with a is positive on the slices b = 1, 2, 3 and negative on b = 0; along b, J grows on every slice."""
+    m = synthetic()
+    m["value"] = (1 + m["param_value"]) * (2.5 + m["param2_value"] - m["param_value"]) * (1 + 0.1 * m["seed"])
+    m["status"] = "ok"
+    m = pd.concat([m, m.assign(gnss="hi", value=2 * m["value"])]).replace({"gnss": {"default": "lo"}})
+    spec = SweepSpec(variant="x", metric="J", groups={"lo": {}, "hi": {}}, params={
+        "a": SweepParam(key="a", range=(0, 2)), "b": SweepParam(key="b", range=(0, 3)), "c": SweepParam(key="c", range=(0, 1))}, claims=[
+        TrendClaim(param="a", range=(0, 2), text="J grows with a"),
+        ProbeClaim(param="b", at=0, vs=3, factor=0.9, text="b = 0 at least 10 % below b = 3"),
+        GroupsClaim(param="a", above="hi", below="lo", text="hi above lo at every a"),
+        TrendClaim(param="c", range=(0, 1), text="not a grid parameter: left out"),
+    ])
+    grows, probe, groups = grid_claims(m, spec)
+    # along a, slice b: J at a = 0, 1, 2 is 2.5, 3, 1.5 for b = 0 (rho -0.5); 3.5, 5, 4.5 for b = 1 (rho +0.5); rising for b = 2, 3
+    assert (grows.other, grows.holding) == ("b", [1.0, 2.0, 3.0])
+    assert {c.where for c in grows.slices[0.0]} == {"lo", "hi"} and not grows.holds_at(0.0)
+    # along b, slice a: J(b=0) / J(b=3) = (2.5 - a) / (5.5 - a) < 0.9 on every slice (0.45, 0.33, 0.14)
+    assert (probe.other, probe.holding) == ("a", [0.0, 1.0, 2.0])
+    assert groups.holding == [0.0, 1.0, 2.0, 3.0]  # hi = 2 lo on every slice
+    md = grid_claims_markdown(SimpleNamespace(name="syn", seeds=2, seed=0), [grows, probe], {"a": None, "b": 2.0})
+    assert "| 1 | J grows with a (config's b = 2: holds) |" in md and "b ∈ {1, 2, 3} | b ∈ {0} |" in md
+    assert "| 2 | b = 0 at least 10 % below b = 3 |" in md and "| 2 | a = 1, lo | z |" in md
+
+
+def test_cli_grid_sweep_writes_matrix_heat_map_and_mapped_claims(tmp_path):
     res = CliRunner().invoke(app, ["sweep", "k", "delta", "--grid", "--config", str(CFG), "--n", "2", "--horizon", "60",
                                    "--gnss", "dgnss", "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
@@ -87,6 +117,16 @@ def test_cli_grid_sweep_writes_matrix_heat_map_and_no_claims(tmp_path):
     assert sorted(set(zip(j["param_value"], j["param2_value"]))) == [(0.0, 0.15), (0.0, 10.0), (1.0, 0.15), (1.0, 10.0)]
     table = (d / "table.md").read_text()
     assert "## Grid: J_tot over k × delta" in table and "| k \\ delta | 0.15 | 10 |" in table
-    assert (d / "figures" / "grid.png").stat().st_size > 1000 and not (d / "claims.md").exists()
+    assert (d / "figures" / "grid.png").stat().st_size > 1000
+    claims = (d / "claims.md").read_text()  # k's claims along the two slices of delta (delta's trend needs 3 points)
+    assert "## Claims along the grid" in claims and "| 1 | J_tot at k = 0.7 at least 20 % below k = 0 (the NPO) |" in claims
+    mapped = json.loads((d / "manifest.json").read_text())["grid_claims"]
+    # k's probe and groups claims along each slice of delta; delta's trend along each slice of k (two points in
+    # [0.15, 10] leave none inside its range [2.5, 10] to rank: it fails there, as in a one-at-a-time sweep)
+    assert [(c["along"], c["slices_of"]) for c in mapped] == [("k", "delta"), ("delta", "k")]
+    assert sorted(mapped[0]["holds_at"] + mapped[0]["fails_at"]) == [0.15, 10.0]
+    assert mapped[1]["fails_at"] == [0.0, 1.0]
+    refused = CliRunner().invoke(app, ["sweep", "k", "delta", "--grid", "--require-claims", "--config", str(CFG)])
+    assert refused.exit_code == 2 and "--require-claims" in refused.output
     bad = CliRunner().invoke(app, ["sweep", "k", "--grid", "--config", str(CFG), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "two different parameters" in bad.output

@@ -4,12 +4,16 @@ A one-at-a-time sweep (Torben et al. Fig. 3) moves each parameter with the other
 the grid runs every combination of two (``sweep_experiment(..., grid=True)``: runs tagged ``param``,
 ``param_value``, ``param2``, ``param2_value``, ``gnss``), in one batch like any sweep. Here: its
 ``table.md`` (the seed-mean KPI as a matrix per world group and signal, with its lowest point and the
-KPI's spread along each axis) and its figure (one heat map per metric and group, the lowest point
-starred and the swept variant's own tuning marked).
+KPI's spread along each axis), its figure (one heat map per metric and group, the lowest point
+starred and the swept variant's own tuning marked) and its ``claims.md``: each one-at-a-time claim of
+``sweep.claims`` about one of the two parameters, checked along that parameter on every slice of the other
+(:func:`grid_claims`), which maps where in the other tuning the paper's statement holds. These are maps,
+not verdicts: the paper states its claims at its own tuning of the other parameter.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -21,6 +25,7 @@ import pandas as pd
 from matplotlib.colors import LogNorm
 
 from marinebench.config import Experiment, SweepSpec
+from marinebench.results.claims import Check, bootstrap_note, format_check
 
 Surfaces = dict[tuple[str, str], pd.DataFrame]
 
@@ -138,3 +143,74 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+@dataclass
+class GridClaim:
+    """One claim of ``sweep.claims`` checked along its parameter on each slice of the grid's other parameter."""
+
+    claim: object
+    metric: str
+    other: str
+    slices: dict[float, list[Check]] = field(default_factory=dict)
+
+    def holds_at(self, value: float) -> bool:
+        return bool(self.slices[value]) and all(c.holds for c in self.slices[value])
+
+    @property
+    def holding(self) -> list[float]:
+        return [v for v in self.slices if self.holds_at(v)]
+
+
+_SWAP = {"param": "param2", "param2": "param", "param_value": "param2_value", "param2_value": "param_value"}
+
+
+def grid_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[GridClaim]:
+    """Each claim about one of the grid's parameters, checked as in a one-at-a-time sweep
+    (:func:`~marinebench.experiments.sweep.sweep_claims`) on every slice of the other parameter, in its order."""
+    from marinebench.experiments.sweep import sweep_claims
+
+    p1, p2 = _axes(metrics)
+    out = []
+    for claim in spec.claims:
+        if claim.param not in (p1, p2):
+            continue
+        along = metrics if claim.param == p1 else metrics.rename(columns=_SWAP)  # param: the claim's; param2: the slice
+        res = GridClaim(claim, claim.metric or spec.shown[0], p2 if claim.param == p1 else p1)
+        for value, part in along.groupby("param2_value", sort=True):
+            checked = sweep_claims(part, spec.model_copy(update={"claims": [claim]}))
+            res.slices[float(value)] = checked[0].checks if checked else []
+        if any(res.slices.values()):  # e.g. a groups claim when only one group was swept: not checked
+            out.append(res)
+    return out
+
+
+def _values(param: str, values: list[float]) -> str:
+    return f"{param} ∈ {{{', '.join(f'{v:.3g}' for v in values)}}}" if values else "–"
+
+
+def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[str, float | None]) -> str:
+    """``claims.md`` of a grid sweep: per claim the slices of the other parameter where it holds and where it
+    fails, then every check. ``own``: the swept variant's own value of each parameter (marked), or None."""
+    lines = [f"## Claims along the grid: sweep of {exp.name}", "",
+             (f"Each claim of the sweep about one of the two parameters, checked as in a one-at-a-time sweep on our means "
+              f"over {exp.seeds} seed(s) (root seed {exp.seed}) along its parameter, on every slice of the other. The "
+              "paper states each claim at its own tuning of the other parameter, so this maps where the statement holds; "
+              "it is not a verdict. " + bootstrap_note), "",
+             "| # | claim | source | metric | along | holds at | fails at |", "|---|---|---|---|---|---|---|"]
+    for i, r in enumerate(results, 1):
+        mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)
+        note = f" (config's {r.other} = {mark:.3g}: {'holds' if r.holds_at(mark) else 'fails'})" if mark is not None else ""
+        failing = [v for v in r.slices if v not in r.holding]
+        lines.append(f"| {i} | {r.claim.text}{note} | {r.claim.source} | {r.metric} | {r.claim.param} | "
+                     f"{_values(r.other, r.holding)} | {_values(r.other, failing)} |")
+    lines += ["", "| # | slice, group | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
+    for i, r in enumerate(results, 1):
+        for value, checks in r.slices.items():
+            lines += [format_check(i, c, f"{r.other} = {value:.3g}, {c.where}") for c in checks]
+    return "\n".join(lines) + "\n"
+
+
+def grid_manifest_entries(results: list[GridClaim]) -> list[dict]:
+    return [{"text": r.claim.text, "source": r.claim.source, "along": r.claim.param, "slices_of": r.other,
+             "holds_at": r.holding, "fails_at": [v for v in r.slices if v not in r.holding]} for r in results]

@@ -144,11 +144,13 @@ def noise_parts(sc, chains: dict[str, np.ndarray]) -> dict[str, float]:
     that an observer's position channels, ``{axis: (l1, l2, l3)}``, make of the scenario's band-limited position
     noise alone, at rest (linear theory, ``observers.base.chain_response``); empty where the world has no such
     noise. Table IV's errors are mostly this part (README)."""
-    noise = getattr(getattr(sc, "sensors", None), "position_noise", None)
-    if getattr(noise, "kind", None) != "bandlimited_uniform":
+    if sc.kind != "open_loop_asv" or sc.sensors.position_noise.kind != "bandlimited_uniform":
         return {}
-    return {f"noise_part_std_{name}": float(noise.response_std(lambda w, g=gains, i=i: chain_response(g, w)[i]))
-            for axis, gains in chains.items() for i, name in enumerate((axis, f"sigma_{axis}"))}
+    out = {}
+    for axis, gains in chains.items():
+        velocity, disturbance = sc.sensors.position_noise.response_std(lambda w, g=gains: np.stack(chain_response(g, w)))
+        out |= {f"noise_part_std_{axis}": float(velocity), f"noise_part_std_sigma_{axis}": float(disturbance)}
+    return out
 
 
 def design_summary(exp: Experiment) -> dict[str, dict]:

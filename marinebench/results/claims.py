@@ -168,15 +168,18 @@ def summary_line(results: list[ClaimResult]) -> str:
     return f"{sum(r.holds for r in results)} of {len(results)} claims hold" + (f", {skipped} not checked" if skipped else "")
 
 
+bootstrap_note = ("The statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
+                  "Spearman's ρ for trends), with a 95% bootstrap interval over seeds (the same seeds resampled for every "
+                  "variant).")
+
+
 def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario", title: str | None = None) -> str:
     """``claims.md``: the verdict per claim, then every check with its numbers (``where``: the heading of
     the column of scenarios, or of groups for a sweep)."""
     title = title or (exp.table.title if exp.table is not None else exp.name)
     lines = [f"## Claims checked: {title}", "",
-             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per {where} and signal. The "
-             "statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
-             "Spearman's ρ for trends), with a 95% bootstrap interval over seeds (the same seeds resampled for every "
-             "variant). A claim holds when every check holds on the means."), "",
+             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per {where} and signal. "
+              f"{bootstrap_note} A claim holds when every check holds on the means."), "",
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
@@ -186,12 +189,16 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
     for i, r in enumerate(results, 1):
         if not r.checks and r.not_checked is None:
             lines.append(f"| {i} | – | – | no data | – | – | **fails** |")
-        for c in r.checks:
-            means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
-            stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
-            lines.append(f"| {i} | {c.where} | {c.signal} | {means} | {stat} | {c.needs} | "
-                         f"{'holds' if c.holds else '**fails**'} |")
+        lines += [format_check(i, c) for c in r.checks]
     return "\n".join(lines) + "\n"
+
+
+def format_check(i: int, c: Check, where: str | None = None) -> str:
+    """One row of the checks table of claim ``i`` (``where``: the first column, default the check's own)."""
+    means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
+    stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
+    return (f"| {i} | {where or c.where} | {c.signal} | {means} | {stat} | {c.needs} | "
+            f"{'holds' if c.holds else '**fails**'} |")
 
 
 def manifest_entries(results: list[ClaimResult]) -> list[dict]:

@@ -50,27 +50,28 @@ class BandLimitedUniform(BaseModel):
         """Where the component frequencies are drawn uniformly: [f_low, f_high] in Hz, or in log Hz."""
         return (np.log(self.f_low), np.log(self.f_high)) if self.spacing == "log" else (self.f_low, self.f_high)
 
+    def _hz(self, drawn: np.ndarray) -> np.ndarray:
+        """Frequencies [Hz] from points of :meth:`_support`."""
+        return np.exp(drawn) if self.spacing == "log" else drawn
+
     @property
     def std(self) -> float:
         """Standard deviation before saturation: ``rms``, or that of U(-bound, bound)."""
         return self.rms if self.rms is not None else self.bound / np.sqrt(3.0)
 
-    def response_std(self, response, points: int = 4001) -> float:
+    def response_std(self, response, points: int = 4001) -> np.ndarray:
         """Expected std of a linear system's steady-state response to this noise (before saturation):
         ``rms * sqrt(E|H(2 pi f)|^2)`` over the components' frequency distribution. ``response(omega)`` gives
-        ``H`` at angular frequencies [rad/s]."""
-        lo, hi = self._support()
-        grid = np.linspace(lo, hi, points)
-        freq = np.exp(grid) if self.spacing == "log" else grid
+        ``H`` at angular frequencies [rad/s] along its last axis; leading axes (several outputs) are kept."""
+        freq = self._hz(np.linspace(*self._support(), points))
         power = np.abs(response(2 * np.pi * freq)) ** 2
-        mean = float(np.sum((power[1:] + power[:-1]) / 2) / (points - 1))  # trapezoid mean over the distribution
+        mean = np.sum((power[..., 1:] + power[..., :-1]) / 2, axis=-1) / (points - 1)  # trapezoid mean over the distribution
         return self.std * np.sqrt(mean)
 
     def sample(self, rngs: list[np.random.Generator], channels: int) -> NoiseBatch:
         K = self.n_components
         lo, hi = self._support()
-        freq = np.array([g.uniform(lo, hi, (channels, K)) for g in rngs])
-        freq = np.exp(freq) if self.spacing == "log" else freq
+        freq = self._hz(np.array([g.uniform(lo, hi, (channels, K)) for g in rngs]))
         phase = np.array([g.uniform(0, 2 * np.pi, (channels, K)) for g in rngs])
         return NoiseBatch(2 * np.pi * freq, phase, self.std * np.sqrt(2.0 / K), self.bound)
 
