@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.colors import LogNorm
 
+from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
 from marinebench.results.claims import Check, bootstrap_note, format_check
 
@@ -149,7 +150,7 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
 class GridClaim:
     """One claim of ``sweep.claims`` checked along its parameter on each slice of the grid's other parameter."""
 
-    claim: object
+    claim: SweepClaim
     metric: str
     other: str
     slices: dict[float, list[Check]] = field(default_factory=dict)
@@ -160,6 +161,10 @@ class GridClaim:
     @property
     def holding(self) -> list[float]:
         return [v for v in self.slices if self.holds_at(v)]
+
+    @property
+    def failing(self) -> list[float]:
+        return [v for v in self.slices if not self.holds_at(v)]
 
 
 _SWAP = {"param": "param2", "param2": "param", "param_value": "param2_value", "param2_value": "param_value"}
@@ -201,9 +206,8 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
     for i, r in enumerate(results, 1):
         mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)
         note = f" (config's {r.other} = {mark:.3g}: {'holds' if r.holds_at(mark) else 'fails'})" if mark is not None else ""
-        failing = [v for v in r.slices if v not in r.holding]
         lines.append(f"| {i} | {r.claim.text}{note} | {r.claim.source} | {r.metric} | {r.claim.param} | "
-                     f"{_values(r.other, r.holding)} | {_values(r.other, failing)} |")
+                     f"{_values(r.other, r.holding)} | {_values(r.other, r.failing)} |")
     lines += ["", "| # | slice, group | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         for value, checks in r.slices.items():
@@ -213,4 +217,4 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
 
 def grid_manifest_entries(results: list[GridClaim]) -> list[dict]:
     return [{"text": r.claim.text, "source": r.claim.source, "along": r.claim.param, "slices_of": r.other,
-             "holds_at": r.holding, "fails_at": [v for v in r.slices if v not in r.holding]} for r in results]
+             "holds_at": r.holding, "fails_at": r.failing} for r in results]
