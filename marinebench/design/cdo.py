@@ -25,7 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
-import cvxpy as cp
 import numpy as np
 from scipy.linalg import expm, solve_discrete_lyapunov
 
@@ -48,6 +47,8 @@ class CdoDesign:
 @lru_cache(maxsize=32)
 def design_lmi(mu: float = 1.0, lam: float = 1e-3) -> CdoDesign:
     """Solve LMI (40) with the decay rate ``mu`` and minimal trace(S) (CLARABEL), then verify in numpy."""
+    import cvxpy as cp  # here, not at the top: see design/lmi.py
+
     P = cp.Variable((3, 3), symmetric=True)
     Y = cp.Variable((3, 1))
     S = cp.Variable((3, 3), symmetric=True)

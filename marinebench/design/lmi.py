@@ -18,11 +18,14 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
-import cvxpy as cp
 import numpy as np
 
 from marinebench.errors import DesignError
+
+if TYPE_CHECKING:  # cvxpy is imported where an LMI is solved: it costs ~60 MiB and ~1 s, which the DP and ROV
+    import cvxpy as cp  # worlds' runs and sweeps (and their worker processes) never need
 
 A_PSI = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
 C_PSI = np.array([[1.0, 0.0, 0.0]])
@@ -54,6 +57,8 @@ def _sym(X: cp.Expression) -> cp.Expression:
 
 def _solve(problem: cp.Problem, what: str) -> None:
     """Solve with CLARABEL; 'inaccurate' solutions are accepted because ``verify`` re-checks them."""
+    import cvxpy as cp
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -75,6 +80,8 @@ def _scale_rows(gain: np.ndarray, s: float, block: int) -> np.ndarray:
 @lru_cache(maxsize=256)
 def rotational_design(delta: float, rho: float, scale_above: float = 50.0) -> LmiSolution:
     """Rotational gain L_psi = -P_psi^-1 W_psi from problem (16) with (25) and a disk |lambda| <= rho."""
+    import cvxpy as cp
+
     s = delta if delta >= scale_above else 1.0
     d, r_ = delta / s, rho / s
     P = cp.Variable((3, 3), symmetric=True)
@@ -107,6 +114,8 @@ def positional_design(
     scale_above: float = 50.0,
 ) -> LmiSolution:
     """Positional gain L_pz = P_p^-1 W_p from problem (28) with (48) and a disk |lambda| <= rho."""
+    import cvxpy as cp
+
     s = delta if delta >= scale_above else 1.0
     d, r_ = delta / s, rho / s
     A0 = A0_P  # invariant under z -> diag(1, s, s^2) z combined with t' = s t

@@ -108,6 +108,10 @@ def one_step_maps(Acl: np.ndarray, L: np.ndarray, Minv: np.ndarray, dt: float, s
     return P, Gy, H[..., :, 6:9] @ Minv
 
 
+_DESIGNS: dict[tuple, dict] = {}  # designed gain classes by (design key, dt, M, D): a sweep's runs share a few
+_DESIGNS_MAX = 256
+
+
 HARMONICS = 4  # A_i(psi) dt is affine in (cos psi, sin psi): the RK4 maps are trig polynomials of order <= 4
 
 
@@ -146,9 +150,7 @@ class DpObserver:
         self.class_of = np.array([classes.index(k) for k in keys])
         self.classes = []
         for key in classes:
-            g1, g2 = gain_pair(key, self.M, self.D)
-            K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
-            self.classes.append({"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, key[-1])})
+            self.classes.append(self._design(key))
         self.poles = [p for c in self.classes for p in c["poles"]]
         self.k = np.array([getattr(t, "k", 0.0) for t in tunings])
         delta = np.array([getattr(t, "delta", 2.5) for t in tunings])
@@ -166,6 +168,18 @@ class DpObserver:
         self.log_cond_sum = np.zeros(B)
         self.cond_max = np.zeros(B)
         self.B = B
+
+    def _design(self, key: tuple) -> dict:
+        """Gains K (L1, L2), poles and fitted one-step maps of one design class, computed once per process
+        (preflight checks each of a sweep's variants, and its runs share a few classes)."""
+        cache_key = (key, self.dt, self.M.tobytes(), self.D.tobytes())
+        if cache_key not in _DESIGNS:
+            g1, g2 = gain_pair(key, self.M, self.D)
+            K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
+            if len(_DESIGNS) >= _DESIGNS_MAX:
+                _DESIGNS.clear()
+            _DESIGNS[cache_key] = {"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, key[-1])}
+        return _DESIGNS[cache_key]
 
     def closed_loop(self, psi: np.ndarray, K: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         """A_i(psi) = A(psi) - L_i(psi) C ``(n, 2, 9, 9)`` and L_i(psi) ``(n, 2, 9, 3)`` for one gain set."""
