@@ -97,7 +97,7 @@ def run(
 ) -> None:
     """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md (claims.md),
     figures/."""
-    import os
+    from marinebench.experiments.cluster import available_cores
 
     try:
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
@@ -107,7 +107,7 @@ def run(
     failing = 0
     if resume:
         loaded, failing = _skip_current(loaded, base, quiet)
-    jobs = min(jobs or os.cpu_count() or 1, max(1, len(loaded)))
+    jobs = min(jobs or available_cores(), max(1, len(loaded)))
     failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
@@ -218,6 +218,9 @@ def sweep(
     dask: Annotated[str | None, typer.Option(metavar="local|ADDRESS", help="run the batches on Dask: 'local' (a local cluster) or a "
                                              "scheduler address (tcp://host:8786); needs the 'dask' extra")] = None,
     workers: Annotated[int | None, typer.Option(metavar="N", min=1, help="workers of --dask local (default: one per core)")] = None,
+    jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="batches side by side in N worker processes on "
+                                      "this machine (0: one per core; at most one per batch; 1: all in this process); the "
+                                      "numbers do not depend on it")] = 0,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
@@ -230,12 +233,13 @@ def sweep(
     """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
     With --grid, two parameters over every combination (param2, param2_value).
 
-    Runs are simulated in batches of --chunk-size; an interrupted sweep resumes from the finished batches.
-    With --dask the batches run in parallel on Dask workers, with the same numbers."""
+    Runs are simulated in batches of --chunk-size, side by side in one worker process per core (--jobs);
+    an interrupted sweep resumes from the finished batches. With --dask the batches run on Dask workers
+    instead. Where a run is simulated does not change its numbers."""
     import time as _time
     from contextlib import nullcontext
 
-    from marinebench.experiments.cluster import dask_client, describe
+    from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
     from marinebench.experiments.grid import (
         grid_claims,
         grid_claims_markdown,
@@ -246,6 +250,7 @@ def sweep(
     )
     from marinebench.experiments.sweep import (
         GRID_N,
+        chunk_count,
         discard_partial,
         run_chunked,
         sweep_claims,
@@ -262,6 +267,8 @@ def sweep(
 
     if chunk_size < 1:
         fail("--chunk-size: must be at least 1")
+    if jobs and dask:
+        fail("--jobs: runs the batches in local processes; with --dask, --workers sets a local cluster's size")
     if n is not None and n < 2:
         fail("--n: at least 2 points per parameter")
     if horizon is not None and horizon <= 0:
@@ -288,15 +295,20 @@ def sweep(
             raise typer.Exit(1)
         return
     t0 = _time.perf_counter()
+    jobs = min(jobs or available_cores(), chunk_count(exp, chunk_size))
+    # the pool first: local workers are forked before the progress bar starts its thread
+    where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
     try:
-        with dask_client(dask, workers) if dask else nullcontext() as client, Progress(
+        with where as pool, Progress(
             TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
             TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
         ) as bar:
             task = bar.add_task("sweep", total=1)
-            executor = describe(dask, client)
-            metrics, wall, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
-                                             on_start=lambda k: bar.update(task, total=k), client=client)
+            executor = pool.describe() if pool is not None else "this process"
+            t_sim = _time.perf_counter()
+            metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
+                                               on_start=lambda k: bar.update(task, total=k), pool=pool)
+            wall = _time.perf_counter() - t_sim
             bar.update(task, completed=bar.tasks[0].total)
     except MarinebenchError as exc:
         fail(str(exc))
@@ -321,7 +333,7 @@ def sweep(
             runs=len(exp.variants) * exp.seeds,
             params=params, grid=grid, n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", horizon=exp.scenario.horizon,
             dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
-            wall_time_s=round(wall, 3),
+            wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
             total_time_s=round(_time.perf_counter() - t0, 3),
             assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
             claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
@@ -330,7 +342,8 @@ def sweep(
         checked = (f", {summary_line(claims)}" if claims else
                    f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
-                  f"({wall:.1f} s of simulation summed over the {ran} batch(es) run){checked} -> {target}", markup=False)
+                  f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
+                  f"-> {target}", markup=False)
     failing = sum(c.fails for c in claims)
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)

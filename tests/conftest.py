@@ -8,6 +8,13 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
+TORBEN_FIG3 = ROOT / "configs" / "torben_fig3.yaml"
+
+
+def sorted_values(frame) -> list[float]:
+    """A tidy metrics frame's values in a fixed order (variant, seed, signal, metric), to compare two runs of
+    the same sweep wherever their batches ran."""
+    return frame.sort_values(["variant", "seed", "signal", "metric"])["value"].tolist()
 
 
 def write_tiny(directory: Path, horizon: float = 4.0) -> Path:

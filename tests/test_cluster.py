@@ -9,19 +9,13 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.errors import ClusterError
 from marinebench.experiments import sweep
-from marinebench.experiments.cluster import check_workers, dask_client
+from marinebench.experiments.cluster import DaskPool, check_workers, dask_pool
 from marinebench.experiments.sweep import run_chunked, sweep_experiment
 from marinebench.loading import load_experiment
 from marinebench.provenance import package_digest
 
-from .conftest import ROOT
-
-CFG = ROOT / "configs" / "torben_fig3.yaml"
-KEY = ["variant", "seed", "signal", "metric"]
-
-
-def _values(frame: pd.DataFrame) -> list[float]:
-    return frame.sort_values(KEY)["value"].tolist()
+from .conftest import TORBEN_FIG3 as CFG
+from .conftest import sorted_values as _values
 
 
 def test_dask_chunks_give_the_in_process_numbers_and_resume(tmp_path):
@@ -33,10 +27,10 @@ def test_dask_chunks_give_the_in_process_numbers_and_resume(tmp_path):
     target = tmp_path / "dask"
     partial = tmp_path / ".dask.partial"
     with Client(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as client:
-        first, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+        first, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
         assert ran == ran_local == 3 and _values(first) == _values(local)
         (partial / "chunk-0001.csv").unlink()  # as if the sweep had been interrupted before this chunk came back
-        resumed, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+        resumed, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
     assert ran == 1 and _values(resumed) == _values(local)
 
 
@@ -67,7 +61,7 @@ def test_cli_sweep_through_a_scheduler_address(tmp_path):
 
 
 def test_unreachable_scheduler_is_a_clear_error():
-    with pytest.raises(ClusterError, match="cannot reach the scheduler"), dask_client("tcp://127.0.0.1:9", timeout=1.0):
+    with pytest.raises(ClusterError, match="cannot reach the scheduler"), dask_pool("tcp://127.0.0.1:9", timeout=1.0):
         pass
 
 
@@ -126,8 +120,8 @@ def test_a_chunk_failing_on_a_worker_keeps_the_finished_chunks_and_a_rerun_resum
     with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as client:
         monkeypatch.setattr(sweep, "run_chunk", failing)
         with pytest.raises(ClusterError, match=r"chunk 1 failed on a worker \(MemoryError: worker ran out of memory\)"):
-            run_chunked(exp, target, chunk_size=2, client=client)
+            run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
         assert not (partial / "chunk-0001.csv").exists()
         monkeypatch.setattr(sweep, "run_chunk", real)
-        resumed, _, ran = run_chunked(exp, target, chunk_size=2, client=client)
+        resumed, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
     assert ran >= 1 and _values(resumed) == _values(reference)

@@ -368,20 +368,27 @@ def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[
     return result.metrics.to_csv(index=False, float_format="%.17g"), result.wall_time
 
 
+def chunk_count(exp: Experiment, chunk_size: int) -> int:
+    """How many chunks :func:`run_chunked` splits the sweep into (``chunk_size`` runs each, whole variants)."""
+    per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
+    return -(-len(exp.variants) // per_chunk)
+
+
 def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None,
-                client=None) -> tuple[pd.DataFrame, float, int]:
+                pool=None) -> tuple[pd.DataFrame, float, int]:
     """Run the sweep's runs in chunks, saving each chunk's metrics in ``.<target>.partial/``.
 
     An interrupted sweep resumes: chunks already on disk for the same inputs (``provenance.inputs_key``: the
-    resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not rerun. Runs are independent of the batch they are in (per-run
-    seeding), so chunking does not change any number. With a Dask ``client`` (``distributed.Client``) the
-    unfinished chunks are submitted to its workers at once and each is saved here as it arrives, so the
-    numbers are the same as in one process and an interrupted distributed sweep resumes the same way.
+    resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not
+    rerun. Runs are independent of the batch they are in (per-run seeding), so chunking does not change any
+    number. With a ``pool`` (``experiments.cluster``: local worker processes or Dask) the unfinished chunks
+    are submitted at once and each is saved here as it arrives, so the numbers are the same as in one
+    process and an interrupted parallel sweep resumes the same way.
     Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
     """
     import shutil
-    import uuid
 
+    from marinebench.experiments.cluster import ChunkFailed
     from marinebench.provenance import inputs_key
     from marinebench.results.writer import atomic_write_text
 
@@ -394,7 +401,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         shutil.rmtree(partial)  # a different sweep, or other code, was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
-    per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
+    per_chunk = max(1, chunk_size // exp.seeds)
     chunks = [exp.variants[i : i + per_chunk] for i in range(0, len(exp.variants), per_chunk)]
     paths = [partial / f"chunk-{c:04d}.csv" for c in range(len(chunks))]
     n_steps = round(exp.scenario.horizon / exp.scenario.dt)
@@ -403,30 +410,19 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     pending = [c for c, path in enumerate(paths) if not path.exists()]
     if progress is not None:
         progress(n_steps * (len(chunks) - len(pending)))
+    if pool is None:
+        finished = ((c, run_chunk(exp, chunks[c], progress)) for c in pending)
+    else:
+        finished = pool.results(run_chunk, {c: (exp, chunks[c]) for c in pending}, progress, n_steps, key[:12])
     wall = 0.0
-    if client is None:
-        for c in pending:
-            csv, w = run_chunk(exp, chunks[c], progress)
+    try:
+        for c, (csv, w) in finished:
             atomic_write_text(paths[c], csv)
             wall += w
-    else:
-        from distributed import as_completed
-
-        # Readable task names, unique per attempt: a chunk cancelled by a failed attempt must not be reused.
-        attempt = uuid.uuid4().hex[:8]
-        futures = {client.submit(run_chunk, exp, chunks[c], key=f"marinebench-{key[:12]}-chunk-{c:04d}-{attempt}"): c
-                   for c in pending}
-        for future in as_completed(futures):
-            try:
-                csv, w = future.result()
-            except Exception as exc:  # noqa: BLE001 -- whatever a worker raised: keep what arrived, a rerun resumes
-                client.cancel(list(futures))
-                raise ClusterError(f"--dask: chunk {futures[future]} failed on a worker ({type(exc).__name__}: {exc}); "
-                                   f"the finished chunks are kept in {partial}, rerun the same command to resume") from None
-            atomic_write_text(paths[futures[future]], csv)
-            wall += w
-            if progress is not None:
-                progress(n_steps)
+    except ChunkFailed as exc:
+        raise ClusterError(f"{pool.option}: chunk {exc.chunk} failed on a worker ({type(exc.cause).__name__}: "
+                           f"{exc.cause}); the finished chunks are kept in {partial}, rerun the same command to "
+                           "resume") from None
     return pd.concat([pd.read_csv(path) for path in paths], ignore_index=True), wall, len(pending)
 
 

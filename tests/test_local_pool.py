@@ -1,0 +1,79 @@
+"""Sweeps in local worker processes (``sweep --jobs``): the same numbers as in one process, progress while the
+batches run, resumable after a failed batch, and clear refusals."""
+
+import json
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.errors import ClusterError
+from marinebench.experiments import runner as runner_module
+from marinebench.experiments.cluster import local_pool
+from marinebench.experiments.sweep import chunk_count, run_chunked, sweep_experiment
+from marinebench.loading import load_experiment
+
+from .conftest import TORBEN_FIG3 as CFG
+from .conftest import sorted_values as _values
+
+
+def test_worker_processes_give_the_in_process_numbers_report_progress_and_resume(tmp_path):
+    base, _ = load_experiment(CFG)
+    exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 60.0, CFG)  # 3 runs of 1200 steps, 3 chunks of 1
+    assert chunk_count(exp, 1) == 3 and chunk_count(exp, 2) == 2
+    local, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=1)
+    target, partial = tmp_path / "pool", tmp_path / ".pool.partial"
+    steps = []
+    with local_pool(2) as pool:
+        assert pool.describe() == "2 local worker process(es)"
+        first, summed, ran = run_chunked(exp, target, chunk_size=1, progress=steps.append, pool=pool)
+        assert ran == 3 and summed > 0 and _values(first) == _values(local)
+        assert sum(steps) == 3 * 1000  # each worker's engine reports every 1000 steps, through the shared counter
+        (partial / "chunk-0002.csv").unlink()  # as if the sweep had been interrupted before this chunk came back
+        resumed, _, ran = run_chunked(exp, target, chunk_size=1, pool=pool)
+    assert ran == 1 and _values(resumed) == _values(local)
+
+
+def test_a_batch_failing_in_a_worker_keeps_the_finished_batches_and_a_rerun_resumes(tmp_path, monkeypatch):
+    base, _ = load_experiment(CFG)
+    exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 15.0, CFG)  # 3 chunks of 1 run
+    reference, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=1)
+    real = runner_module.run
+
+    def failing(e, *args, **kwargs):
+        if e.variants[0].name == exp.variants[1].name:
+            raise MemoryError("worker ran out of memory")
+        return real(e, *args, **kwargs)
+
+    monkeypatch.setattr(runner_module, "run", failing)  # before the pool: its workers are forked with it
+    target, partial = tmp_path / "pool", tmp_path / ".pool.partial"
+    with local_pool(1) as pool, pytest.raises(ClusterError, match=r"^--jobs: chunk 1 failed on a worker "
+                                               r"\(MemoryError: worker ran out of memory\); the finished chunks are kept"):
+        run_chunked(exp, target, chunk_size=1, pool=pool)
+    assert (partial / "chunk-0000.csv").exists() and not (partial / "chunk-0001.csv").exists()
+    monkeypatch.setattr(runner_module, "run", real)
+    with local_pool(2) as pool:
+        resumed, _, ran = run_chunked(exp, target, chunk_size=1, pool=pool)
+    assert 1 <= ran <= 2 and _values(resumed) == _values(reference)
+
+
+def test_cli_sweep_jobs_and_their_manifest(tmp_path):
+    args = ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15", "--gnss", "dgnss", "--chunk-size", "1",
+            "--quiet"]
+    one = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "one"), "--jobs", "1"])
+    two = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "two"), "--jobs", "2"])
+    assert one.exit_code == 0 and two.exit_code == 0, one.output + two.output
+    folder = "torben_fig3_sweep_k_dgnss_n2_15s"
+    a, b = (pd.read_csv(tmp_path / d / folder / "metrics.csv") for d in ("one", "two"))
+    assert _values(a) == _values(b)
+    m1, m2 = (json.loads((tmp_path / d / folder / "manifest.json").read_text()) for d in ("one", "two"))
+    assert m1["executor"] == "this process" and m2["executor"] == "2 local worker process(es)"
+    assert m2["wall_time_s"] > 0 and m2["batch_time_s"] > 0 and m2["chunks_run"] == 2
+
+
+def test_jobs_with_dask_is_refused_in_one_line(tmp_path):
+    res = CliRunner().invoke(app, ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15", "--out",
+                                   str(tmp_path), "--jobs", "2", "--dask", "local", "--quiet"])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1
+    assert res.output.startswith("error: --jobs:") and not any(tmp_path.iterdir())
