@@ -77,3 +77,14 @@ def test_jobs_with_dask_is_refused_in_one_line(tmp_path):
                                    str(tmp_path), "--jobs", "2", "--dask", "local", "--quiet"])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1
     assert res.output.startswith("error: --jobs:") and not any(tmp_path.iterdir())
+
+
+def test_ctrl_c_stops_the_running_batches_instead_of_waiting_for_them():
+    import signal
+    import time
+
+    with pytest.raises(KeyboardInterrupt), local_pool(1) as pool:
+        workers = list(pool.pool._processes.values())
+        pool.pool.submit(time.sleep, 30)  # a batch that would keep the shutdown waiting for 30 s, then exit 0
+        raise KeyboardInterrupt  # the user presses Ctrl-C while it runs
+    assert [w.exitcode for w in workers] == [-signal.SIGTERM]  # stopped, not waited for

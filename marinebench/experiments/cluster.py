@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import sys
 import uuid
 from collections.abc import Callable, Iterator
@@ -52,6 +53,7 @@ _steps = None  # in a LocalPool worker: the pool's shared count of simulated ste
 def _init_worker(counter) -> None:
     global _steps
     _steps = counter
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent stops us
 
 
 def _count(k: int) -> None:
@@ -104,18 +106,29 @@ class LocalPool:
                     raise ChunkFailed(futures[future], exc) from None
                 yield futures[future], value
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Shut the workers down; ``abort``: stop the chunks they are running instead of waiting for them."""
+        if abort:
+            stop = getattr(self.pool, "terminate_workers", None)  # Python >= 3.14
+            if stop is not None:
+                stop()
+            else:
+                for process in list((self.pool._processes or {}).values()):
+                    process.terminate()
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
 @contextmanager
 def local_pool(workers: int):
-    """Yield a :class:`LocalPool` of ``workers`` processes, shut down on exit."""
+    """Yield a :class:`LocalPool` of ``workers`` processes, shut down on exit; on an error or Ctrl-C the
+    running chunks are stopped at once (the finished ones are already saved, so a rerun resumes)."""
     pool = LocalPool(workers)
     try:
         yield pool
-    finally:
-        pool.close()
+    except BaseException:
+        pool.close(abort=True)
+        raise
+    pool.close()
 
 
 class DaskPool:
