@@ -51,9 +51,14 @@ _steps = None  # in a LocalPool worker: the pool's shared count of simulated ste
 
 
 def _init_worker(counter) -> None:
+    from threadpoolctl import threadpool_limits
+
     global _steps
     _steps = counter
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent stops us
+    # One BLAS thread per worker, as Dask's and joblib's workers have: the workers fill the cores already, and
+    # BLAS threads that outnumber the cores spin-wait against each other.
+    threadpool_limits(1)
 
 
 def _count(k: int) -> None:
