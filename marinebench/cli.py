@@ -20,6 +20,11 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from marinebench.errors import ConfigError, MarinebenchError, StiffnessError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation benchmarks for marine-vehicle observers.")
+# options that run and sweep share
+Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
+DEFAULT_SWEEP = Path("configs/torben_fig3.yaml")  # relative to the working directory, as results/ is
+SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help=f"experiment with a sweep section (default: {DEFAULT_SWEEP})")]
+Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")]
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 out = Console(highlight=False, soft_wrap=True)
 
@@ -33,6 +38,9 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
     from marinebench.loading import load_checked
 
+    if config == DEFAULT_SWEEP and not config.exists():
+        raise ConfigError(config, "", f"file not found in {Path.cwd()}: the default --config is relative to the "
+                          "working directory; run from the repository's root or pass --config FILE")
     sets = list(sets)
     if seed is not None:
         sets.append(f"seed={seed}")
@@ -84,11 +92,11 @@ def run(
     out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>/ (default results/)")] = None,
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed (overrides the config)")] = None,
     seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per variant")] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")] = None,
+    set_: Sets = None,
     profile: Annotated[str | None, typer.Option(metavar="NAME", help="apply the config's named profile (e.g. quick)")] = None,
     jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="experiments run at once in separate processes "
                                       "(0: one per core); the numbers do not depend on it")] = 1,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    quiet: Quiet = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
                                                  "everything is written")] = False,
     resume: Annotated[bool, typer.Option(help="skip an experiment whose results were written from the same inputs "
@@ -205,7 +213,7 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
 @app.command()
 def sweep(
     params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time (from the config's sweep.params)")],
-    config: Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    config: SweepConfig = DEFAULT_SWEEP,
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option(metavar="GROUPS", help="comma-separated world groups (default: all)")] = None,
     horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
@@ -213,7 +221,7 @@ def sweep(
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,
     seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")] = None,
+    set_: Sets = None,
     chunk_size: Annotated[int, typer.Option(metavar="N", help="runs per batch; finished batches survive an interruption")] = 300,
     dask: Annotated[str | None, typer.Option(metavar="local|ADDRESS", help="run the batches on Dask: 'local' (a local cluster) or a "
                                              "scheduler address (tcp://host:8786); needs the 'dask' extra")] = None,
@@ -221,7 +229,7 @@ def sweep(
     jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="batches side by side in N worker processes on "
                                       "this machine (0: one per core; at most one per batch; 1: all in this process); the "
                                       "numbers do not depend on it")] = 0,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    quiet: Quiet = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
     grid: Annotated[bool, typer.Option(help="every combination of two parameters (--n per axis, default 11) instead of "
@@ -250,7 +258,7 @@ def sweep(
     )
     from marinebench.experiments.sweep import (
         GRID_N,
-        chunk_count,
+        chunks_of,
         discard_partial,
         run_chunked,
         sweep_claims,
@@ -295,7 +303,7 @@ def sweep(
             raise typer.Exit(1)
         return
     t0 = _time.perf_counter()
-    jobs = min(jobs or available_cores(), chunk_count(exp, chunk_size))
+    jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
     try:
@@ -352,7 +360,7 @@ def sweep(
 
 @app.command()
 def bench(
-    config: Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section")] = Path("configs/torben_fig3.yaml"),
+    config: SweepConfig = DEFAULT_SWEEP,
     params: Annotated[str, typer.Option(metavar="PARAMS", help="comma-separated swept parameters")] = "k,delta,eps",
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     horizon: Annotated[float, typer.Option(metavar="SECONDS", min=0.1, help="simulated seconds per run in the benchmark")] = 50.0,

@@ -472,13 +472,14 @@ class Experiment(BaseModel):
         return (listed or list(self.scenarios))[0]
 
     def check_windows(self, horizon: float) -> None:
-        """Every error metric's time window is non-empty for this horizon (ValueError otherwise)."""
-        for m in self.metrics:
+        """Every error metric's time window overlaps the run ``[0, horizon]`` (ValueError otherwise): a window
+        beyond the horizon would measure nothing (and a ratio of such metrics divides by zero)."""
+        for i, m in enumerate(self.metrics):
             if m.kind in ("int", "recovery"):
                 continue
             start, end = m.window(horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or horizon)
-            if start >= end:
-                raise ValueError(f"metric '{m.label}' window starts at {start} s, after its end {end} s")
+            if start >= min(end, horizon):
+                raise ValueError(f"metrics.{i}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of {horizon:g} s")
 
     def _check_single(self) -> Experiment:
         names = [v.name for v in self.variants]

@@ -59,6 +59,16 @@ def test_less_within_and_at_most_on_planted_means(tmp_path):
     assert [c.holds for c in res[6].checks] == [True, False]  # u ordered, sigma_u tied
 
 
+def test_a_zero_mean_fails_its_check_instead_of_the_run(tmp_path):
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "less", "a": A, "b": B, "signals": ["u"], "text": "a below b"},
+        {"kind": "within", "variants": [A, B], "factor": 1.5, "signals": ["u"], "text": "u within 1.5x"}]))
+    res = evaluate(exp, planted({(A, "u"): [1.0, 1.0], (B, "u"): [0.0, 0.0]}))
+    assert [r.fails for r in res] == [True, True]
+    assert [r.checks[0].statistic for r in res] == [np.inf, np.inf]
+    assert np.isnan(evaluate(exp, planted({(A, "u"): [0.0, 0.0], (B, "u"): [0.0, 0.0]}))[0].checks[0].statistic)
+
+
 def test_near_paper_uses_the_tables_values_both_ways(tmp_path):
     exp, _ = load_experiment(tiny_with_claims(tmp_path, [
         {"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "within 2x of the paper"}]))

@@ -85,6 +85,9 @@ BAD = {
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
+    # a window that ends after a run of 4 s: before, it measured nothing and the claims divided by zero
+    "window_after_horizon": (lambda d: d["metrics"][0].update(t_start=10.0, t_end=20.0),
+                             "metrics.0: metric 'std' window [10, 20] s is empty in a run of 4 s"),
     "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "cdo"}),
                                   ("variants.0.observer.kind: 'cdo' does not apply to scenario kind open_loop_asv "
                                    "(its observers: bejarano, custom, liu_eso, npo, resetting_fto)")),
@@ -228,6 +231,15 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
     bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
     assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
     assert not (tmp_path / "o").exists()
+
+
+def test_sweep_outside_the_repository_says_where_the_default_config_is_looked_for(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for command in (["sweep", "k"], ["bench"]):
+        res = runner.invoke(app, command)
+        assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+        assert res.output.startswith(f"error: configs/torben_fig3.yaml: file not found in {tmp_path}: the default --config")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_run_jobs_gives_the_same_files_as_one_process(tmp_path):

@@ -38,6 +38,8 @@ def test_grid_points_are_every_combination_with_both_values_tagged():
     assert sweep_suffix(base, ["k", "eps"], n=GRID_N, grid=True) == "_sweep_grid_k_eps"
     with pytest.raises(ConfigError, match="two different parameters"):
         sweep_experiment(base, ["k"], None, 3, None, CFG, grid=True)
+    with pytest.raises(ConfigError, match=r"\['k'\] given more than once"):  # one at a time: before, a traceback
+        sweep_experiment(base, ["k", "eps", "k"], None, 3, None, CFG)
 
 
 def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range():

@@ -11,7 +11,7 @@ from marinebench.cli import app
 from marinebench.errors import ClusterError
 from marinebench.experiments import runner as runner_module
 from marinebench.experiments.cluster import local_pool
-from marinebench.experiments.sweep import chunk_count, run_chunked, sweep_experiment
+from marinebench.experiments.sweep import chunks_of, run_chunked, sweep_experiment
 from marinebench.loading import load_experiment
 
 from .conftest import TORBEN_FIG3 as CFG
@@ -21,7 +21,7 @@ from .conftest import sorted_values as _values
 def test_worker_processes_give_the_in_process_numbers_report_progress_and_resume(tmp_path):
     base, _ = load_experiment(CFG)
     exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 60.0, CFG)  # 3 runs of 1200 steps, 3 chunks of 1
-    assert chunk_count(exp, 1) == 3 and chunk_count(exp, 2) == 2
+    assert len(chunks_of(exp, 1)) == 3 and len(chunks_of(exp, 2)) == 2
     local, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=1)
     target, partial = tmp_path / "pool", tmp_path / ".pool.partial"
     steps = []

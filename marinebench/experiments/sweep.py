@@ -94,6 +94,9 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     unknown = [p for p in params if p not in spec.params]
     if unknown:
         raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}; sweepable: {sorted(spec.params)}")
+    twice = sorted({p for p in params if list(params).count(p) > 1})
+    if twice and not grid:
+        raise ConfigError("PARAM", "", f"parameter(s) {twice} given more than once ({file})")
     if grid and (len(params) != 2 or params[0] == params[1]):
         raise ConfigError("--grid", "", f"a grid sweep takes two different parameters, got {params} ({file})")
     groups = groups or list(spec.groups)
@@ -368,10 +371,11 @@ def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[
     return result.metrics.to_csv(index=False, float_format="%.17g"), result.wall_time
 
 
-def chunk_count(exp: Experiment, chunk_size: int) -> int:
-    """How many chunks :func:`run_chunked` splits the sweep into (``chunk_size`` runs each, whole variants)."""
-    per_chunk = max(1, chunk_size // exp.seeds)  # runs = variants x seeds
-    return -(-len(exp.variants) // per_chunk)
+def chunks_of(exp: Experiment, chunk_size: int) -> list[list]:
+    """The sweep's variants in the chunks :func:`run_chunked` runs: at most ``chunk_size`` runs each (runs =
+    variants x seeds), whole variants, at least one variant."""
+    per_chunk = max(1, chunk_size // exp.seeds)
+    return [exp.variants[i : i + per_chunk] for i in range(0, len(exp.variants), per_chunk)]
 
 
 def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, on_start=None,
@@ -401,8 +405,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         shutil.rmtree(partial)  # a different sweep, or other code, was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
-    per_chunk = max(1, chunk_size // exp.seeds)
-    chunks = [exp.variants[i : i + per_chunk] for i in range(0, len(exp.variants), per_chunk)]
+    chunks = chunks_of(exp, chunk_size)
     paths = [partial / f"chunk-{c:04d}.csv" for c in range(len(chunks))]
     n_steps = round(exp.scenario.horizon / exp.scenario.dt)
     if on_start is not None:

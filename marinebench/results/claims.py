@@ -62,12 +62,19 @@ def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: fl
     if n < 2:
         return None
     idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-    draws = np.array([stat(*(v[i] for v in values)) for i in idx])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a draw of zero means is dropped below
+        draws = np.array([stat(*(v[i] for v in values)) for i in idx])
     draws = draws[np.isfinite(draws)]
     if not draws.size:
         return None
     alpha = (1 - level) / 2
     return float(np.quantile(draws, alpha)), float(np.quantile(draws, 1 - alpha))
+
+
+def _ratio(a: float, b: float) -> float:
+    """``a / b`` as a claim's statistic: nan for 0/0 and +-inf for x/0, so such a check fails, not the run."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return float(np.float64(a) / np.float64(b))
 
 
 def _aligned(series: list[pd.Series]) -> list[np.ndarray]:
@@ -125,19 +132,19 @@ def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Che
         out = []
         for lo, hi in pairs:
             a, b = _aligned([series[lo], series[hi]])
-            ratio = means[lo] / means[hi]
+            ratio = _ratio(means[lo], means[hi])
             ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
             out.append(check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi]))
         return out
     if isinstance(claim, WithinClaim):
         if claim.factor is not None:  # one check over all the variants
-            ratio = max(means.values()) / min(means.values())
+            ratio = _ratio(max(means.values()), min(means.values()))
             ci = bootstrap_ci(_aligned(list(series.values())), lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
             return [check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor)]
         first, out = variants[0], []
         for other in variants[1:]:
             x, y = _aligned([series[other], series[first]])
-            ratio = means[other] / means[first]
+            ratio = _ratio(means[other], means[first])
             ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
             out.append(check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other]))
         return out
