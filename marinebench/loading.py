@@ -25,7 +25,19 @@ from marinebench.plugins import resolve_source, split_source
 
 class YamlLoader(yaml.SafeLoader):
     """``yaml.safe_load`` with YAML 1.2's floats: PyYAML follows YAML 1.1, where ``1e8`` and ``5.0e6`` (no dot
-    or no exponent sign) are strings, while editors and the JSON Schema of ``marinebench schema`` read numbers."""
+    or no exponent sign) are strings, while editors and the JSON Schema of ``marinebench schema`` read numbers.
+    A key written twice in one mapping is an error (YAML 1.2 requires unique keys; PyYAML keeps the last one
+    silently, so a second ``observer:`` would replace the first without a word)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value if isinstance(node, yaml.MappingNode) else ():
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                key = self.construct_object(key_node)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
+                seen.add(key)
+        return super().construct_mapping(node, deep)
 
 
 YamlLoader.add_implicit_resolver(

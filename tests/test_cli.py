@@ -118,6 +118,16 @@ def test_invalid_yaml(tmp_path):
     assert res.exit_code == 2 and "broken.yaml: invalid YAML: line 3" in res.output
 
 
+def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_path):
+    twice = tmp_path / "twice.yaml"
+    twice.write_text(tiny_config.read_text() + "seeds: 3\n")  # the tiny config already says seeds: 2
+    res = runner.invoke(app, ["run", str(twice), "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {twice}: invalid YAML: line {len(twice.read_text().splitlines())}, column 1: duplicate key 'seeds'"
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario={horizon: 1, horizon: 2}", "--out", str(tmp_path / "o")])
+    assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario: duplicate key 'horizon'"
+    assert not (tmp_path / "o").exists()
+
+
 def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--set", "scenario.horizon=-1"])
     assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.horizon")
