@@ -34,6 +34,18 @@ def fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+def _write_text(path: Path, text: str, option: str) -> None:
+    """Write one output file atomically; a path that cannot be written is one line naming the option."""
+    from marinebench.results.writer import atomic_write_text
+
+    try:
+        atomic_write_text(path, text)
+    except FileExistsError:  # mkdir of a parent that is a file
+        fail(f"{option}: {path}: a parent is a file, not a folder")
+    except OSError as exc:
+        fail(f"{option}: {path}: cannot write ({exc.strerror or exc})")
+
+
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
     from marinebench.loading import load_checked
@@ -69,7 +81,10 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
     except MarinebenchError as exc:
         raise MarinebenchError(f"{path}: {exc}") from None
     claims = evaluate(exp, result.metrics)
-    write_run(result, target, origins, claims)
+    try:
+        write_run(result, target, origins, claims)
+    except OSError as exc:  # e.g. the disk filled up: the previous results stay, nothing half-written
+        raise MarinebenchError(f"{target}: cannot write results ({exc.strerror or exc})") from None
     n_div = int((result.metrics["status"] != "ok").sum())
     warning = f"warning: {exp.name}: {n_div} metric values from diverged runs excluded" if n_div else None
     checked = f", {summary_line(claims)}" if claims else ""
@@ -106,12 +121,17 @@ def run(
     """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md (claims.md),
     figures/."""
     from marinebench.experiments.cluster import available_cores
+    from marinebench.results.writer import writable_folder
 
     try:
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
     except MarinebenchError as exc:
         fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
+    try:
+        writable_folder(base)
+    except MarinebenchError as exc:
+        fail(str(exc))
     failing = 0
     if resume:
         loaded, failing = _skip_current(loaded, base, quiet)
@@ -271,7 +291,7 @@ def sweep(
     from marinebench.results.claims import manifest_entries, summary_line
     from marinebench.results.claims import markdown as claims_markdown
     from marinebench.results.outputs import model_assumptions, resolved_yaml
-    from marinebench.results.writer import atomic_directory, manifest
+    from marinebench.results.writer import atomic_directory, manifest, writable_folder
 
     if chunk_size < 1:
         fail("--chunk-size: must be at least 1")
@@ -297,6 +317,10 @@ def sweep(
     target = (out_dir if out_dir is not None else Path("results")) / (
         config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
+    try:
+        writable_folder(target.parent)
+    except MarinebenchError as exc:
+        fail(str(exc))
     if known is not None:
         if require_claims and known:
             err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
@@ -324,27 +348,30 @@ def sweep(
     claims = [] if grid else sweep_claims(metrics, base.sweep)
     mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
     table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
-    with atomic_directory(target) as tmp:
-        metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
-        (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
-        if claims:
-            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
-        if mapped:
-            own = {p: tuning(base, p) for p in params}
-            (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
-        (tmp / "figures").mkdir()
-        figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
-        (tmp / "manifest.json").write_text(manifest(
-            experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)}, overrides=set_ or [],
-            seed=exp.seed, seeds=exp.seeds,
-            runs=len(exp.variants) * exp.seeds,
-            params=params, grid=grid, n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", horizon=exp.scenario.horizon,
-            dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
-            wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
-            total_time_s=round(_time.perf_counter() - t0, 3),
-            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
-            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
+    try:
+        with atomic_directory(target) as tmp:
+            metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+            (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
+            (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
+            if claims:
+                (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
+            if mapped:
+                own = {p: tuning(base, p) for p in params}
+                (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
+            (tmp / "figures").mkdir()
+            figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
+            (tmp / "manifest.json").write_text(manifest(
+                experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)}, overrides=set_ or [],
+                seed=exp.seed, seeds=exp.seeds,
+                runs=len(exp.variants) * exp.seeds,
+                params=params, grid=grid, n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", horizon=exp.scenario.horizon,
+                dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
+                wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
+                total_time_s=round(_time.perf_counter() - t0, 3),
+                assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
+                claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
+    except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
+        fail(f"{target}: cannot write results ({exc.strerror or exc})")
     discard_partial(target)
     if not quiet:
         checked = (f", {summary_line(claims)}" if claims else
@@ -431,7 +458,6 @@ def compare(
     """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse (or, with --strict,
     missing); 2: unusable input."""
     from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
-    from marinebench.results.writer import atomic_write_text
 
     if rtol < 0 or atol < 0:
         fail("--rtol/--atol: tolerances must be non-negative")
@@ -454,7 +480,7 @@ def compare(
     else:
         text = table.to_csv(index=False)
     if output is not None:
-        atomic_write_text(output, text)
+        _write_text(output, text, "--output")
         err.print(headline(table), markup=False)
     else:
         sys.stdout.write(text)
@@ -470,13 +496,12 @@ def report(
 ) -> None:
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
     from marinebench.results.report import render_report
-    from marinebench.results.writer import atomic_write_text
 
     try:
         html = render_report(results, compare_with)
     except MarinebenchError as exc:
         fail(str(exc))
-    atomic_write_text(out_file, html)
+    _write_text(out_file, html, "--out")
     out.print(f"report -> {out_file}", markup=False)
 
 

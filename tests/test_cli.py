@@ -128,6 +128,22 @@ def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_
     assert not (tmp_path / "o").exists()
 
 
+def test_an_output_folder_that_cannot_be_written_fails_before_the_runs(tiny_config, tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("not a folder")
+    for out, why in ((a_file, "a file, not a folder"), (a_file / "sub", "cannot write results there (Not a directory)")):
+        res = runner.invoke(app, ["run", str(tiny_config), "--out", str(out), "--quiet"])
+        assert res.exit_code == 2 and res.output.strip() == f"error: --out: {out}: {why}", res.output
+        res = runner.invoke(app, ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "2",
+                                  "--horizon", "5", "--out", str(out), "--quiet"])
+        assert res.exit_code == 2 and res.output.strip() == f"error: --out: {out}: {why}", res.output
+    for command in (["report", str(ROOT / "results" / "bejarano_fig6"), "--out"],
+                    ["compare", str(ROOT / "results" / "bejarano_fig6"), str(ROOT / "results" / "bejarano_fig6"), "--output"]):
+        res = runner.invoke(app, [*command, str(a_file / "x")])
+        assert res.exit_code == 2 and res.output.strip() == f"error: {command[-1]}: {a_file / 'x'}: a parent is a file, not a folder"
+    assert a_file.read_text() == "not a folder"
+
+
 def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--set", "scenario.horizon=-1"])
     assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.horizon")

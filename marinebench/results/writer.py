@@ -27,6 +27,21 @@ def _umask() -> int:
     return mask
 
 
+def writable_folder(folder: Path, option: str = "--out") -> None:
+    """Create ``folder`` (results go below it) and check a file can be made there, before any simulation: an
+    output location that cannot be written fails at once in one line naming ``option``, not after the runs."""
+    from marinebench.errors import ConfigError
+
+    if Path(folder).exists() and not Path(folder).is_dir():
+        raise ConfigError(option, "", f"{folder}: a file, not a folder")
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise ConfigError(option, "", f"{folder}: cannot write results there ({exc.strerror or exc})") from None
+
+
 @contextmanager
 def atomic_directory(target: Path) -> Iterator[Path]:
     """Yield a temporary directory that replaces ``target`` only if the block succeeds."""
