@@ -36,7 +36,7 @@ def load(path: str | Path, sets: Sequence[str] = (), profile: str | None = None)
 
 def run(experiment: Experiment, traces: bool = True) -> RunResult:
     """Simulate every variant x seed of an experiment in one batch (``traces``: keep the decimated traces
-    the figures need)."""
+    the figures need: seed 0 of each variant, ``result.traced`` are their run indices)."""
     from marinebench.experiments.runner import run as run_experiment
 
     return run_experiment(experiment, traces=traces)

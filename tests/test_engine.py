@@ -63,6 +63,17 @@ def test_same_seed_same_numbers_and_batch_independence(tiny_config):
     np.testing.assert_array_equal(three.loc[a.index].to_numpy(), a.to_numpy())  # seeds 0, 1 unchanged
 
 
+def test_traces_keep_seed_0_of_each_variant_whatever_the_seed_count(tiny_config):
+    """The figures draw seed 0, so only those runs are traced: memory does not grow with --seeds."""
+    one, three = short(tiny_config, "seeds=1"), short(tiny_config, "seeds=3")
+    assert three.run_seed[three.traced].tolist() == [0, 0] and three.run_variant[three.traced].tolist() == [0, 1]
+    for a, b in zip(one.traces[1:], three.traces[1:]):  # truth, estimates
+        assert a.keys() == b.keys()
+        for k in a:
+            assert b[k].shape == (len(three.traces[0]), 2)
+            np.testing.assert_array_equal(a[k], b[k])  # the same runs as with one seed
+
+
 def test_other_root_seed_changes_numbers(tiny_config):
     a = values(short(tiny_config))
     b = values(short(tiny_config, "seed=7"))

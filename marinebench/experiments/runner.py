@@ -115,13 +115,14 @@ class RunResult:
     experiment: Experiment
     metrics: pd.DataFrame  # tidy: experiment, scenario, variant, seed, signal, metric, value, status (+ tags)
     summary: pd.DataFrame  # variant, signal, metric, mean, ci_low, ci_high, n, n_diverged
-    traces: tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]
+    traces: tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]  # t (T,), truth and estimates (T, R)
     run_variant: np.ndarray
     run_seed: np.ndarray
     wall_time: float
     max_rate: float
     designs: dict[str, dict] = field(default_factory=dict)
     parts: dict[str, RunResult] = field(default_factory=dict)  # per scenario, for multi-scenario experiments
+    traced: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # the R traced runs: seed 0 of each variant
 
 
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
@@ -241,7 +242,8 @@ def _run_single(
     trace_signals = sorted({s for g in groups for s in g.observer.signals} & set(truth0))  # estimated and true
     if hasattr(world, "estimates"):
         trace_signals = sorted(set(trace_signals) | set(world.estimates(0.0, world.x0)) | set(truth0))
-    tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt)) if traces else None
+    traced = np.flatnonzero(run_seed == 0) if traces else np.zeros(0, dtype=int)  # the runs the figures draw
+    tracer = Traces(trace_signals, round(exp.engine.trace_dt / sc.dt), traced) if traces else None
     if on_start is not None:
         on_start(n_steps)
     t0 = time.perf_counter()
@@ -250,7 +252,8 @@ def _run_single(
     metrics = _tidy(exp, _values(exp, recorders, groups, V * S), _estimated_signals(groups, world, V * S),
                     diverged, run_variant, run_seed)
     arrays = tracer.arrays() if tracer else (np.zeros(0), {}, {})
-    return RunResult(exp, metrics, summarise(metrics), arrays, run_variant, run_seed, wall, rate, design_summary(exp))
+    return RunResult(exp, metrics, summarise(metrics), arrays, run_variant, run_seed, wall, rate, design_summary(exp),
+                     traced=traced)
 
 
 def _recorders(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray, n_steps: int) -> list:

@@ -66,9 +66,10 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
         figdir.mkdir()
         for part in result.parts.values() or [result]:
             t, truth, est = part.traces
+            variant, seed = part.run_variant[part.traced], part.run_seed[part.traced]  # the traces' columns
             for spec in part.experiment.figures:
                 draw = tracking if spec.kind == "tracking" else timeseries
-                draw(part.experiment, spec, t, truth, est, part.run_variant, part.run_seed, figdir / spec.file)
+                draw(part.experiment, spec, t, truth, est, variant, seed, figdir / spec.file)
         worlds = {name: exp.part(name).scenario for name in exp.scenario_names}
         (tmp / "manifest.json").write_text(
             manifest(

@@ -58,10 +58,13 @@ class ErrorMoments:
 
 
 class Traces:
-    """Truth and estimates every ``every`` steps, for figures. Arrays are ``(T, B)``."""
+    """Truth and estimates every ``every`` steps, for figures, of the runs ``columns`` (batch indices; all runs
+    when None). Arrays are ``(T, len(columns))``: the figures draw seed 0 of each variant, so the runner keeps
+    only those runs and the traces' memory does not grow with the number of seeds."""
 
-    def __init__(self, signals: list[str], every: int) -> None:
+    def __init__(self, signals: list[str], every: int, columns: np.ndarray | None = None) -> None:
         self.signals, self.every = list(signals), max(1, every)
+        self.columns = slice(None) if columns is None else np.asarray(columns)
         self.t: list[float] = []
         self.truth: dict[str, list[np.ndarray]] = {s: [] for s in signals}
         self.est: dict[str, list[np.ndarray]] = {s: [] for s in signals}
@@ -71,9 +74,9 @@ class Traces:
             return
         self.t.append(t)
         for s in self.signals:
-            self.truth[s].append(truth[s].copy())
+            self.truth[s].append(truth[s][self.columns].copy())
             if s in est:
-                self.est[s].append(est[s].copy())
+                self.est[s].append(est[s][self.columns].copy())
 
     def arrays(self) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
         return (
