@@ -46,13 +46,17 @@ def _write_text(path: Path, text: str, option: str) -> None:
         fail(f"{option}: {path}: cannot write ({exc.strerror or exc})")
 
 
+def _sweep_config(config: Path) -> None:
+    """sweep/bench: the default --config is relative to the working directory; say so when it is not there."""
+    if config == DEFAULT_SWEEP and not config.exists():
+        fail(f"{config}: file not found in {Path.cwd()}: the default --config is relative to the working directory; "
+             "run from the repository's root or pass --config FILE")
+
+
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
     from marinebench.loading import load_checked
 
-    if config == DEFAULT_SWEEP and not config.exists():
-        raise ConfigError(config, "", f"file not found in {Path.cwd()}: the default --config is relative to the "
-                          "working directory; run from the repository's root or pass --config FILE")
     sets = list(sets)
     if seed is not None:
         sets.append(f"seed={seed}")
@@ -304,6 +308,7 @@ def sweep(
     if grid and require_claims:
         fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
              "use it on a one-at-a-time sweep")
+    _sweep_config(config)
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     try:
@@ -317,15 +322,15 @@ def sweep(
     target = (out_dir if out_dir is not None else Path("results")) / (
         config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
-    try:
-        writable_folder(target.parent)
-    except MarinebenchError as exc:
-        fail(str(exc))
     if known is not None:
         if require_claims and known:
             err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
             raise typer.Exit(1)
         return
+    try:
+        writable_folder(target.parent)
+    except MarinebenchError as exc:
+        fail(str(exc))
     t0 = _time.perf_counter()
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
@@ -401,6 +406,7 @@ def bench(
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.experiments.sweep import sweep_experiment
 
+    _sweep_config(config)
     try:
         base, _ = _load(config, [], None, None)
         if base.scenario is None or base.scenario.kind != "dp_supply":
