@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from enum import Enum
 from pathlib import Path
 from typing import Annotated
@@ -32,6 +34,15 @@ out = Console(highlight=False, soft_wrap=True)
 def fail(message: str, code: int = 2) -> None:
     err.print(f"error: {message}", markup=False)
     raise typer.Exit(code)
+
+
+@contextmanager
+def one_line_errors() -> Iterator[None]:
+    """A :class:`MarinebenchError` raised inside becomes its one line on stderr and exit code 2."""
+    try:
+        yield
+    except MarinebenchError as exc:
+        fail(str(exc))
 
 
 def _write_text(path: Path, text: str, option: str) -> None:
@@ -65,10 +76,18 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     return load_checked(config, sets, profile)
 
 
+def _worlds(exp) -> list:
+    return [exp.scenario] if exp.scenario is not None else list(exp.scenarios.values())
+
+
+def _steps(exp) -> int:
+    """Time steps of an experiment's simulations (what its progress callback counts)."""
+    return sum(round(w.horizon / w.dt) for w in _worlds(exp))
+
+
 def _work(exp) -> float:
     """Rough cost of an experiment (runs x steps), to start the longest first when running in parallel."""
-    worlds = [exp.scenario] if exp.scenario is not None else list(exp.scenarios.values())
-    return sum(len(exp.variants) * exp.seeds * w.horizon / w.dt for w in worlds)
+    return sum(len(exp.variants) * exp.seeds * w.horizon / w.dt for w in _worlds(exp))
 
 
 def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None, int]:
@@ -96,13 +115,15 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
     return line, warning, sum(c.fails for c in claims)
 
 
-def _run_in_worker(path: Path, exp, origins, target: Path) -> tuple[str | None, str | None, int, str | None]:
+def _run_in_worker(path: Path, exp, origins, target: Path, progress=None) -> tuple[str | None, str | None, int, str | None]:
     """``_run_and_write`` in a worker process: (line, warning, failing claims, error) as plain values
     (exceptions with custom constructors do not always survive pickling)."""
     try:
-        return (*_run_and_write(path, exp, origins, target), None)
+        return (*_run_and_write(path, exp, origins, target, progress=progress), None)
     except MarinebenchError as exc:
         return None, None, 0, str(exc)
+    except Exception as exc:  # noqa: BLE001 -- a crash: one line, after the other experiments are written
+        return None, None, 0, f"{path}: failed in a --jobs worker process ({type(exc).__name__}: {exc}; --jobs 1 shows the traceback)"
 
 
 @app.command()
@@ -114,7 +135,7 @@ def run(
     set_: Sets = None,
     profile: Annotated[str | None, typer.Option(metavar="NAME", help="apply the config's named profile (e.g. quick)")] = None,
     jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="experiments run at once in separate processes "
-                                      "(0: one per core); the numbers do not depend on it")] = 1,
+                                      "(0, the default: one per core; 1: one after the other); the numbers do not depend on it")] = 0,
     quiet: Quiet = False,
     require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
                                                  "everything is written")] = False,
@@ -127,15 +148,11 @@ def run(
     from marinebench.experiments.cluster import available_cores
     from marinebench.results.writer import writable_folder
 
-    try:
+    with one_line_errors():
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
-    except MarinebenchError as exc:
-        fail(str(exc))
     base = out_dir if out_dir is not None else Path("results")
-    try:
+    with one_line_errors():
         writable_folder(base)
-    except MarinebenchError as exc:
-        fail(str(exc))
     failing = 0
     if resume:
         loaded, failing = _skip_current(loaded, base, quiet)
@@ -183,20 +200,17 @@ def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
     """The experiments one after the other with a progress bar each; returns the number of failing claims."""
     failing = 0
     for path, exp, origins in loaded:
-        try:
-            with Progress(
-                TextColumn(f"{exp.name:<22}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
-            ) as bar:
-                task = bar.add_task(exp.name, total=1)
-                line, warning, n_failing = _run_and_write(
-                    path, exp, origins, base / path.stem,
-                    progress=lambda n, task=task: bar.advance(task, n),
-                    on_start=lambda n, task=task: bar.update(task, total=n),
-                )
-                bar.update(task, completed=bar.tasks[0].total)
-        except MarinebenchError as exc:
-            fail(str(exc))
+        with one_line_errors(), Progress(
+            TextColumn(f"{exp.name:<22}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+            TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
+        ) as bar:
+            task = bar.add_task(exp.name, total=1)
+            line, warning, n_failing = _run_and_write(
+                path, exp, origins, base / path.stem,
+                progress=lambda n, task=task: bar.advance(task, n),
+                on_start=lambda n, task=task: bar.update(task, total=n),
+            )
+            bar.update(task, completed=bar.tasks[0].total)
         failing += n_failing
         if warning:
             err.print(warning, markup=False)
@@ -206,29 +220,35 @@ def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
 
 
 def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
-    """``run --jobs N``: each experiment in a worker process (spawned), the longest first. Every experiment
-    that can finish is written; the first error is reported afterwards (exit 2)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    """``run --jobs N``: the experiments side by side in N local worker processes (forked, as the sweep's
+    batches: ``experiments/cluster.py``), the longest first, with one progress bar over all their steps. Every
+    experiment that can finish is written; the first error is reported afterwards (exit 2)."""
+    from marinebench.experiments.cluster import ChunkFailed, local_pool
 
     errors, failing = [], 0
     order = sorted(loaded, key=lambda item: _work(item[1]), reverse=True)
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool, Progress(
-        TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-        TimeElapsedColumn(), console=err, disable=quiet, transient=False,
+    tasks = {i: (path, exp, origins, base / path.stem) for i, (path, exp, origins) in enumerate(order)}
+    # the pool first: its workers are forked before the progress bar starts its thread
+    with local_pool(jobs) as pool, Progress(
+        TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+        TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
     ) as bar:
-        task = bar.add_task("run", total=len(order))
-        futures = [pool.submit(_run_in_worker, path, exp, origins, base / path.stem) for path, exp, origins in order]
-        for future in as_completed(futures):
-            line, warning, n_failing, error = future.result()
-            failing += n_failing
-            bar.advance(task)
-            if error:
-                errors.append(error)
-            if warning:
-                err.print(warning, markup=False)
-            if line and not quiet:
-                out.print(line, markup=False)
+        task = bar.add_task("run", total=sum(_steps(exp) for _, exp, _ in order))
+        try:
+            for _, (line, warning, n_failing, error) in pool.results(
+                _run_in_worker, tasks, progress=lambda k: bar.advance(task, k)
+            ):
+                failing += n_failing
+                if error:
+                    errors.append(error)
+                if warning:
+                    err.print(warning, markup=False)
+                if line and not quiet:
+                    out.print(line, markup=False)
+        except ChunkFailed as exc:  # errors come back as values, so this is a worker that died (killed, out of memory)
+            errors.insert(0, f"{tasks[exc.chunk][0]}: its --jobs worker process died ({type(exc.cause).__name__}: "
+                             f"{exc.cause}); the experiments reported above are written")
+        bar.update(task, completed=bar.tasks[0].total)
     if errors:
         fail(errors[0])
     return failing
@@ -311,14 +331,12 @@ def sweep(
     _sweep_config(config)
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
-    try:
+    with one_line_errors():
         base, _ = _load(config, set_ or [], seed, seeds)
         exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
         from marinebench.loading import preflight
 
         preflight(exp, config)
-    except MarinebenchError as exc:
-        fail(str(exc))
     target = (out_dir if out_dir is not None else Path("results")) / (
         config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
@@ -327,28 +345,23 @@ def sweep(
             err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
             raise typer.Exit(1)
         return
-    try:
+    with one_line_errors():
         writable_folder(target.parent)
-    except MarinebenchError as exc:
-        fail(str(exc))
     t0 = _time.perf_counter()
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
-    try:
-        with where as pool, Progress(
-            TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-            TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
-        ) as bar:
-            task = bar.add_task("sweep", total=1)
-            executor = pool.describe() if pool is not None else "this process"
-            t_sim = _time.perf_counter()
-            metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
-                                               on_start=lambda k: bar.update(task, total=k), pool=pool)
-            wall = _time.perf_counter() - t_sim
-            bar.update(task, completed=bar.tasks[0].total)
-    except MarinebenchError as exc:
-        fail(str(exc))
+    with one_line_errors(), where as pool, Progress(
+        TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+        TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
+    ) as bar:
+        task = bar.add_task("sweep", total=1)
+        executor = pool.describe() if pool is not None else "this process"
+        t_sim = _time.perf_counter()
+        metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
+                                           on_start=lambda k: bar.update(task, total=k), pool=pool)
+        wall = _time.perf_counter() - t_sim
+        bar.update(task, completed=bar.tasks[0].total)
     shown = base.sweep.shown
     claims = [] if grid else sweep_claims(metrics, base.sweep)
     mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
@@ -407,14 +420,12 @@ def bench(
     from marinebench.experiments.sweep import sweep_experiment
 
     _sweep_config(config)
-    try:
+    with one_line_errors():
         base, _ = _load(config, [], None, None)
         if base.scenario is None or base.scenario.kind != "dp_supply":
             raise ConfigError(config, "scenario.kind", "bench compares the batched engine with the plain per-run "
                               "reference of the DP observers, which exists for dp_supply scenarios (e.g. configs/torben_fig3.yaml)")
         exp = sweep_experiment(base, params.split(","), None, n, horizon, config)
-    except MarinebenchError as exc:
-        fail(str(exc))
     full_horizon = base.scenario.horizon
     B = len(exp.variants)
     t0 = _time.perf_counter()
@@ -468,7 +479,7 @@ def compare(
     if rtol < 0 or atol < 0:
         fail("--rtol/--atol: tolerances must be non-negative")
     tol = Tolerance(rtol=rtol, atol=atol)
-    try:
+    with one_line_errors():
         if variants is not None:
             if candidate is not None:
                 fail("give either CANDIDATE or --variants A B, not both")
@@ -477,8 +488,6 @@ def compare(
             if candidate is None:
                 fail("missing CANDIDATE (or use --variants A B)")
             table = compare_dirs(baseline, candidate, metric, tol)
-    except MarinebenchError as exc:
-        fail(str(exc))
     if fmt is Format.md:
         text = to_markdown(table, all_cells=all_cells)
     elif fmt is Format.json:
@@ -503,10 +512,8 @@ def report(
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
     from marinebench.results.report import render_report
 
-    try:
+    with one_line_errors():
         html = render_report(results, compare_with)
-    except MarinebenchError as exc:
-        fail(str(exc))
     _write_text(out_file, html, "--out")
     out.print(f"report -> {out_file}", markup=False)
 
@@ -517,7 +524,7 @@ def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="e
     from marinebench.loading import is_scenario_file, load_scenario
 
     for f in files:
-        try:
+        with one_line_errors():
             if is_scenario_file(f):
                 load_scenario(f)
             else:
@@ -525,8 +532,6 @@ def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="e
                 for i, claim in enumerate(exp.claims):
                     if (problem := exp.claim_problem(claim)) is not None:
                         err.print(f"warning: {f}: claims.{i} cannot be checked: {problem}", markup=False)
-        except MarinebenchError as exc:
-            fail(str(exc))
         out.print(f"{f}: ok", markup=False)
 
 

@@ -268,14 +268,43 @@ def test_sweep_outside_the_repository_says_where_the_default_config_is_looked_fo
     assert list(tmp_path.iterdir()) == []
 
 
-def test_run_jobs_gives_the_same_files_as_one_process(tmp_path):
-    """--jobs 2 runs the experiments in spawned worker processes: the same metrics, tables and resolved
-    configs as a run in this process."""
+def test_run_jobs_gives_the_same_files_as_one_process(tmp_path, monkeypatch):
+    """By default run puts the experiments side by side in local worker processes, one per core: the same
+    metrics, tables and resolved configs as a run in this process (--jobs 1)."""
+    from marinebench.experiments import cluster
+
+    pools = []
+    monkeypatch.setattr(cluster, "available_cores", lambda: 2)
+    monkeypatch.setattr(cluster, "local_pool", lambda n, make=cluster.local_pool: pools.append(n) or make(n))
     configs = [str(ROOT / "configs" / "bejarano_table4.yaml"), str(ROOT / "configs" / "torben_fig3.yaml")]
     sets = ["--seeds", "2", "--set", "scenario.horizon=20", "--quiet"]
-    one = CliRunner().invoke(app, ["run", *configs, *sets, "--out", str(tmp_path / "one")])
-    two = CliRunner().invoke(app, ["run", *configs, *sets, "--jobs", "2", "--out", str(tmp_path / "two")])
+    one = CliRunner().invoke(app, ["run", *configs, *sets, "--jobs", "1", "--out", str(tmp_path / "one")])
+    assert pools == []
+    two = CliRunner().invoke(app, ["run", *configs, *sets, "--out", str(tmp_path / "two")])
+    assert pools == [2]
     assert one.exit_code == 0 and two.exit_code == 0, (one.output, two.output)
     for stem in ("bejarano_table4", "torben_fig3"):
         for name in ("metrics.csv", "table.md", "config.resolved.yaml"):
             assert (tmp_path / "one" / stem / name).read_text() == (tmp_path / "two" / stem / name).read_text()
+
+
+def test_an_experiment_that_crashes_in_a_worker_is_one_line_and_the_others_are_written(tmp_path, monkeypatch):
+    """An exception that is not a config error (a bug) in a --jobs worker: one line naming the config, exit 2,
+    after the other experiments are written."""
+    from marinebench import cli
+
+    real = cli._run_and_write
+
+    def crash_on_torben(path, *args, **kwargs):
+        if path.stem == "torben_fig3":
+            raise RuntimeError("boom")
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(cli, "_run_and_write", crash_on_torben)  # inherited by the forked workers
+    configs = [str(ROOT / "configs" / "bejarano_table4.yaml"), str(ROOT / "configs" / "torben_fig3.yaml")]
+    res = CliRunner().invoke(app, ["run", *configs, "--seeds", "1", "--set", "scenario.horizon=10", "--quiet",
+                                   "--jobs", "2", "--out", str(tmp_path)])
+    assert res.exit_code == 2, res.output
+    assert res.output.strip().splitlines()[-1] == (
+        f"error: {configs[1]}: failed in a --jobs worker process (RuntimeError: boom; --jobs 1 shows the traceback)")
+    assert not (tmp_path / "torben_fig3").exists() and (tmp_path / "bejarano_table4" / "metrics.csv").exists()

@@ -4,7 +4,8 @@ Chunks of the sweep are the unit of work (``experiments.sweep.run_chunked``); re
 process, which writes them, so an interrupted sweep resumes the same way wherever its chunks ran, and runs
 are seeded per run, so the numbers do not depend on where or in which batch a run was simulated.
 
-- :class:`LocalPool` (``marinebench sweep --jobs N``, by default one process per core): worker processes
+- :class:`LocalPool` (``marinebench sweep --jobs N``, by default one process per core; ``run`` puts whole
+  experiments on it the same way): worker processes
   forked from this one, so they share its imported modules and need nothing installed or pickled but the
   chunk. The engine is one single-threaded Python loop over time, so a sweep of several batches on a
   2-core machine takes the longest batch's time instead of their sum.
