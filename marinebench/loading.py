@@ -131,6 +131,16 @@ def apply_set(doc: dict, assignment: str) -> None:
             node = node[idx]
 
 
+def shown_path(path: Path) -> Path:
+    """A resolved file as a user names it, for error messages and manifests: relative to the working directory
+    when it lies below it (``scenarios/cs2_noisy.yaml`` beside ``configs/x.yaml`` on the command line),
+    otherwise absolute. Never machine-specific in results written from the repository's root."""
+    try:
+        return path.relative_to(Path.cwd().resolve())
+    except ValueError:
+        return path
+
+
 def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
     """The file a ``from:`` in ``path`` names (relative to it), checked: a path, not circular, existing."""
     if not isinstance(ref, str):
@@ -163,7 +173,7 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
     spath = (path.parent / ref).resolve()
     if not spath.exists():
         raise ConfigError(path, key, f"scenario file not found: {ref}")
-    origins[key] = spath
+    origins[key] = shown_path(spath)
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path
     return _deep_merge(read_scenario(spath), overrides)
@@ -174,7 +184,7 @@ def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dic
     bpath = _from_path(doc.pop("from"), path, seen, "experiment")
     base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
     base.pop("name", None)  # the derived file is its own experiment
-    return base, {**{k: v for k, v in origins.items() if k}, "from": bpath}
+    return base, {**{k: v for k, v in origins.items() if k}, "from": shown_path(bpath)}
 
 
 def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None,

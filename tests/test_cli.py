@@ -308,3 +308,24 @@ def test_an_experiment_that_crashes_in_a_worker_is_one_line_and_the_others_are_w
     assert res.output.strip().splitlines()[-1] == (
         f"error: {configs[1]}: failed in a --jobs worker process (RuntimeError: boom; --jobs 1 shows the traceback)")
     assert not (tmp_path / "torben_fig3").exists() and (tmp_path / "bejarano_table4" / "metrics.csv").exists()
+
+
+def test_files_are_named_relative_to_the_working_directory_when_below_it(tmp_path, monkeypatch):
+    """Manifests and errors name a scenario as the user would (``scenarios/x.yaml`` from the repository's root),
+    not by a machine's absolute path; a file outside the working directory keeps its absolute path."""
+    from marinebench.loading import load_experiment
+
+    monkeypatch.chdir(ROOT)
+    _, origins = load_experiment(Path("configs/bejarano_table4.yaml"))
+    assert origins["scenario"] == Path("scenarios/cs2_noisy.yaml")
+    _, origins = load_experiment(Path("configs/torben_fig1_matched.yaml"))  # from: torben_fig1.yaml
+    assert origins["from"] == Path("configs/torben_fig1.yaml") and origins["scenario"] == Path("scenarios/dp_impulse.yaml")
+    (tmp_path / "w").mkdir()
+    bad = yaml.safe_load((ROOT / "scenarios" / "cs2_noisy.yaml").read_text()) | {"dt": -1, "from": str(ROOT / "scenarios" / "cs2_noiseless.yaml")}
+    (tmp_path / "w" / "bad.yaml").write_text(yaml.safe_dump(bad))
+    (tmp_path / "exp.yaml").write_text("from: " + str(ROOT / "configs" / "bejarano_table4.yaml") + "\nscenario: w/bad.yaml\n")
+    res = runner.invoke(app, ["validate", str(tmp_path / "exp.yaml")])
+    assert res.exit_code == 2 and res.output.startswith(f"error: {tmp_path / 'w' / 'bad.yaml'}: scenario.dt:"), res.output
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["validate", "exp.yaml"])
+    assert res.exit_code == 2 and res.output.startswith("error: w/bad.yaml: scenario.dt:"), res.output
