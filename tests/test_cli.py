@@ -329,3 +329,20 @@ def test_files_are_named_relative_to_the_working_directory_when_below_it(tmp_pat
     monkeypatch.chdir(tmp_path)
     res = runner.invoke(app, ["validate", "exp.yaml"])
     assert res.exit_code == 2 and res.output.startswith("error: w/bad.yaml: scenario.dt:"), res.output
+
+
+def test_a_worker_that_dies_is_one_line(tmp_path, monkeypatch):
+    """A --jobs worker killed mid-run (out of memory, a signal): one line naming the config, exit 2, no traceback."""
+    import os
+
+    from marinebench import cli
+
+    def die(path, *args, **kwargs):
+        os._exit(9)  # as if killed: the pool breaks
+
+    monkeypatch.setattr(cli, "_run_and_write", die)  # inherited by the forked workers
+    config = str(ROOT / "configs" / "bejarano_table4.yaml")
+    res = CliRunner().invoke(app, ["run", config, config.replace("table4", "fig6"), "--seeds", "1", "--quiet",
+                                   "--jobs", "2", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+    assert res.output.startswith("error: ") and "its --jobs worker process died (BrokenProcessPool" in res.output
