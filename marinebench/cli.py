@@ -76,20 +76,6 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     return load_checked(config, sets, profile)
 
 
-def _worlds(exp) -> list:
-    return [exp.scenario] if exp.scenario is not None else list(exp.scenarios.values())
-
-
-def _steps(exp) -> int:
-    """Time steps of an experiment's simulations (what its progress callback counts)."""
-    return sum(round(w.horizon / w.dt) for w in _worlds(exp))
-
-
-def _work(exp) -> float:
-    """Rough cost of an experiment (runs x steps), to start the longest first when running in parallel."""
-    return sum(len(exp.variants) * exp.seeds * w.horizon / w.dt for w in _worlds(exp))
-
-
 def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None, int]:
     """Simulate one experiment and write its results atomically; returns the summary line, a warning (or
     None) and the number of its claims that fail. Errors are re-raised as one line naming the file."""
@@ -224,16 +210,17 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
     batches: ``experiments/cluster.py``), the longest first, with one progress bar over all their steps. Every
     experiment that can finish is written; the first error is reported afterwards (exit 2)."""
     from marinebench.experiments.cluster import ChunkFailed, local_pool
+    from marinebench.experiments.runner import run_steps, steps
 
     errors, failing = [], 0
-    order = sorted(loaded, key=lambda item: _work(item[1]), reverse=True)
+    order = sorted(loaded, key=lambda item: run_steps(item[1]), reverse=True)  # the longest first
     tasks = {i: (path, exp, origins, base / path.stem) for i, (path, exp, origins) in enumerate(order)}
     # the pool first: its workers are forked before the progress bar starts its thread
     with local_pool(jobs) as pool, Progress(
         TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
         TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
     ) as bar:
-        task = bar.add_task("run", total=sum(_steps(exp) for _, exp, _ in order))
+        task = bar.add_task("run", total=sum(steps(exp) for _, exp, _ in order))
         try:
             for _, (line, warning, n_failing, error) in pool.results(
                 _run_in_worker, tasks, progress=lambda k: bar.advance(task, k)

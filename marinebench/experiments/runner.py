@@ -200,6 +200,16 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
     return out
 
 
+def steps(exp: Experiment) -> int:
+    """Time steps of an experiment's simulations, over its scenarios: what ``run``'s progress callback counts."""
+    return sum(round(p.scenario.horizon / p.scenario.dt) for p in map(exp.part, exp.scenario_names))
+
+
+def run_steps(exp: Experiment) -> int:
+    """Runs x time steps over the experiment's scenarios (each scenario with its own variants): its rough cost."""
+    return sum(len(p.variants) * p.seeds * steps(p) for p in map(exp.part, exp.scenario_names))
+
+
 def run(
     exp: Experiment,
     progress: Callable[[int], None] | None = None,
@@ -212,7 +222,7 @@ def run(
         return _run_single(exp, progress, on_start, traces)
     parts = {name: exp.part(name) for name in exp.scenarios}
     if on_start is not None:
-        on_start(sum(round(p.scenario.horizon / p.scenario.dt) for p in parts.values()))
+        on_start(steps(exp))
     done = {name: _run_single(p, progress, None, traces) for name, p in parts.items()}
     metrics = pd.concat([r.metrics for r in done.values()], ignore_index=True)
     return RunResult(
@@ -236,7 +246,7 @@ def _run_single(
     world = make_world(exp, run_variant, run_seed)
     groups = build_groups(exp, run_variant, plant_of(sc))
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
-    n_steps = round(sc.horizon / sc.dt)
+    n_steps = steps(exp)
     recorders = _recorders(exp, run_variant, run_seed, n_steps)
     truth0 = world.truth(0.0, world.x0)
     trace_signals = sorted({s for g in groups for s in g.observer.signals} & set(truth0))  # estimated and true
