@@ -544,8 +544,27 @@ def list_kinds() -> None:
             out.print(f"  {name:<22} {doc}", markup=False)
 
 
-def main() -> None:  # pragma: no cover - console entry point
-    app()
+# click's exception classes, through typer (recent typer vendors its own copy of click, older ones use click's)
+_USAGE_ERROR, _CLICK_EXCEPTION = (next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)
+                                  for name in ("UsageError", "ClickException"))
+
+
+def main(args: list[str] | None = None) -> None:
+    """Console entry point: ``app``, except that a bad option or argument (a usage error, which typer draws as
+    a boxed panel with the usage) is one line naming it, like every other input error, exit code 2."""
+    try:
+        code = app(args=args, prog_name="marinebench", standalone_mode=False)
+    except _USAGE_ERROR as exc:
+        command = exc.ctx.command_path if exc.ctx else "marinebench"
+        err.print(f"error: {' '.join(exc.format_message().split())} (see '{command} --help')", markup=False)
+        sys.exit(2)
+    except _CLICK_EXCEPTION as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except typer.Abort:
+        err.print("aborted", markup=False)
+        sys.exit(1)
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -48,9 +48,11 @@ YamlLoader.add_implicit_resolver(
 def read_yaml(path: Path) -> dict[str, Any]:
     """A YAML file's top-level mapping (:class:`YamlLoader`); ConfigError naming the file otherwise."""
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(path, "", "file not found") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(path, "", f"not UTF-8 text (byte {exc.start}): a YAML file is UTF-8") from None
     except OSError as exc:
         raise ConfigError(path, "", f"cannot read ({exc.strerror})") from None
     try:

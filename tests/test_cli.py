@@ -8,7 +8,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from marinebench.cli import app
+from marinebench.cli import app, main
 
 from .conftest import ROOT
 
@@ -116,6 +116,44 @@ def test_invalid_yaml(tmp_path):
     bad.write_text("variants: [\n  name: x\n")
     res = runner.invoke(app, ["validate", str(bad)])
     assert res.exit_code == 2 and "broken.yaml: invalid YAML: line 3" in res.output
+
+
+def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
+    bad = tmp_path / "latin1.yaml"
+    bad.write_bytes("seeds: 2 # réglage\n".encode("latin-1"))
+    res = runner.invoke(app, ["validate", str(bad)])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {bad}: not UTF-8 text (byte 12): a YAML file is UTF-8"
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["run", "{cfg}", "--jobs", "-1"], ("error: Invalid value for '--jobs' / '-j': Input should be greater than or "
+                                       "equal to 0 (see 'marinebench run --help')")),
+    (["run", "{cfg}", "--bogus"], "error: No such option: --bogus"),
+    (["run"], "error: Missing argument 'CONFIG'. (see 'marinebench run --help')"),
+    (["sweep", "k", "--n", "x"], "error: Invalid value for '--n': Input should be a valid integer"),
+    (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
+])
+def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):
+    """click's usage errors (drawn by typer as a boxed panel) come out of ``marinebench`` as one line, exit 2."""
+    with pytest.raises(SystemExit) as exit_:
+        main([a.format(cfg=tiny_config) for a in args] + ["--out", str(tmp_path / "o")] * (args[0] == "run"))
+    captured = capsys.readouterr()
+    assert exit_.value.code == 2 and captured.out == ""
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(expected), captured.err
+    assert not (tmp_path / "o").exists()
+
+
+def test_the_console_entry_point_keeps_the_commands_exit_codes(tiny_config, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["validate", str(tiny_config)])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"{tiny_config}: ok"
+    with pytest.raises(SystemExit) as exit_:
+        main(["validate", str(tmp_path / "none.yaml")])
+    assert exit_.value.code == 2 and capsys.readouterr().err.strip() == f"error: {tmp_path / 'none.yaml'}: file not found"
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0 and "Usage: marinebench" in capsys.readouterr().out
 
 
 def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_path):

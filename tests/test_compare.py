@@ -238,3 +238,33 @@ def test_a_reference_older_than_an_option_still_pairs(tmp_path):
     changed.write_text(yaml.safe_dump(doc, sort_keys=False))
     res = runner.invoke(app, ["compare", str(tmp_path / "old"), str(tmp_path / "changed")])
     assert res.exit_code == 2 and "scenario.sensors.continuous_feed" in res.output, res.output
+
+
+DAMAGED = {
+    "manifest_not_json": ("manifest.json", b"{bad", "manifest.json: invalid JSON: line 1, column 2"),
+    "manifest_not_object": ("manifest.json", b"[1]", "manifest.json: expected a JSON object at the top level"),
+    "resolved_not_yaml": ("config.resolved.yaml", b"x: [\n", "config.resolved.yaml: invalid YAML: line 2"),
+    "metrics_empty": ("metrics.csv", b"", "metrics.csv: not a readable CSV"),
+    "metrics_no_rows": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\n", "metrics.csv: no rows"),
+    "metrics_foreign": ("metrics.csv", b"experiment,x\nexp,1\n", "metrics.csv: missing column(s) ['scenario', 'variant'"),
+    "metrics_not_utf8": ("metrics.csv", b"\xff\xfe", "metrics.csv: not a readable CSV ('utf-8' codec"),
+    "value_not_numeric": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\nexp,s,a,0,u,std,x\n",
+                          "metrics.csv: column 'value' is not numeric"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DAMAGED))
+@pytest.mark.parametrize("command", ["compare", "report"])
+def test_a_damaged_result_file_is_one_line_naming_it(case, command, tmp_path, base_values):
+    """compare and report read files other tools (or a crash, or a hand edit) may have damaged: one line, exit 2."""
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = write_result(tmp_path / "cand", "exp", base_values)
+    name, content, expected = DAMAGED[case]
+    (cand / name).write_bytes(content)
+    args = ["compare", str(tmp_path / "base"), str(tmp_path / "cand")] if command == "compare" else \
+        ["report", str(tmp_path / "cand"), "--out", str(tmp_path / "r.html"), "--compare", str(tmp_path / "base")]
+    res = runner.invoke(app, args)
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 2 and len(lines) == 1 and "Traceback" not in res.output, res.output
+    assert lines[0].startswith(f"error: {cand / name}") and expected in lines[0], lines[0]
+    assert not (tmp_path / "r.html").exists()

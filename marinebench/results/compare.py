@@ -16,18 +16,17 @@ in common are refused (:func:`require_pairs`): a gate that pairs nothing must no
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 from pydantic import TypeAdapter, ValidationError
 
 from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
+from marinebench.results.stored import read_manifest, read_metrics, read_resolved
 
 HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
 KEYS = ["experiment", "scenario", "variant", "signal", "metric"]
@@ -56,7 +55,10 @@ def find_results(root: Path) -> dict[str, Path]:
         d = csv.parent
         if any(part.startswith(".") for part in d.relative_to(root).parts):
             continue  # temporary directories of an interrupted write
-        name = pd.read_csv(csv, usecols=["experiment"], nrows=1)["experiment"].iloc[0]
+        first = read_metrics(csv, usecols=["experiment"], nrows=1)
+        if first.empty:
+            raise CompareInputError(f"{csv}: no rows")
+        name = first["experiment"].iloc[0]
         if name in found:
             raise CompareInputError(f"{root}: experiment '{name}' appears twice ({found[name]} and {d})")
         found[name] = d
@@ -66,7 +68,7 @@ def find_results(root: Path) -> dict[str, Path]:
 
 
 def load_metrics(dirs: dict[str, Path], metrics: list[str] | None = None) -> pd.DataFrame:
-    frames = [pd.read_csv(d / "metrics.csv") for d in dirs.values()]
+    frames = [read_metrics(d / "metrics.csv") for d in dirs.values()]
     df = pd.concat(frames, ignore_index=True)
     if "status" not in df:
         df["status"] = "ok"
@@ -77,10 +79,9 @@ def load_metrics(dirs: dict[str, Path], metrics: list[str] | None = None) -> pd.
 
 def _world(d: Path) -> dict:
     """The parts of a resolved config that must agree for a comparison to be paired."""
-    path = d / "config.resolved.yaml"
-    if not path.exists():
+    doc = read_resolved(d)
+    if not doc:
         return {}
-    doc = yaml.safe_load(path.read_text())
     scenarios = doc.get("scenarios")
     return {"scenario": _normalised(AnyScenario, doc.get("scenario")),
             "scenarios": {k: _normalised(AnyScenario, v) for k, v in scenarios.items()} if scenarios else scenarios,
@@ -185,9 +186,7 @@ def load_claims(dirs: dict[str, Path]) -> dict[tuple[str, str], bool]:
     """(experiment, claim text) -> holds, from the manifests (claims that could not be checked left out)."""
     out = {}
     for name, d in dirs.items():
-        manifest = d / "manifest.json"
-        doc = json.loads(manifest.read_text()) if manifest.exists() else {}
-        for c in doc.get("claims", []):
+        for c in read_manifest(d).get("claims", []):
             if not c.get("not_checked"):
                 out[name, c["text"]] = bool(c["holds"])
     return out

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 import re
 from pathlib import Path
 
 from marinebench.results.compare import compare_dirs, find_results, to_markdown
+from marinebench.results.stored import read_manifest
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
@@ -65,10 +65,9 @@ def markdown_to_html(md: str) -> str:
 
 
 def _manifest_html(d: Path) -> str:
-    path = d / "manifest.json"
-    if not path.exists():
+    m = read_manifest(d)
+    if not m:
         return "<p>(no manifest)</p>"
-    m = json.loads(path.read_text())
     keys = ["created", "git_revision", "seed", "seeds", "runs", "diverged_runs", "dt", "horizon", "wall_time_s", "command"]
     rows = "".join(f"<tr><th>{k}</th><td>{html.escape(str(m.get(k, '')))}</td></tr>" for k in keys if k in m)
     versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
@@ -81,8 +80,7 @@ def claims_overview(dirs: dict[str, Path]) -> str:
     """A markdown table of the claims of every result directory (from the manifests): how many hold."""
     rows = []
     for name, d in dirs.items():
-        path = d / "manifest.json"
-        claims = json.loads(path.read_text()).get("claims", []) if path.exists() else []
+        claims = read_manifest(d).get("claims", [])
         if claims:
             failing = [c["text"] for c in claims if not c["holds"] and not c.get("not_checked")]
             rows.append(f"| {name} | {sum(c['holds'] for c in claims)} of {len(claims)} | "

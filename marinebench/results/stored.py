@@ -1,0 +1,76 @@
+"""Reading a result directory back (``compare``, ``report``): its ``metrics.csv``, ``manifest.json`` and
+``config.resolved.yaml``, each checked on the way in, so that a damaged or foreign file is one line naming
+it (:class:`StoredResultError`, exit code 2), not a traceback from pandas, json or yaml."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+from marinebench.errors import MarinebenchError
+
+#: Columns every ``metrics.csv`` written by ``run`` or ``sweep`` has (``status`` is optional: older files).
+METRICS_COLUMNS = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value"]
+
+
+class StoredResultError(MarinebenchError):
+    """A result file that cannot be read back."""
+
+
+def _text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise StoredResultError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise StoredResultError(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None = None) -> pd.DataFrame:
+    """A ``metrics.csv`` with at least :data:`METRICS_COLUMNS` (or ``usecols``) and numeric ``seed``/``value``."""
+    need = usecols or METRICS_COLUMNS
+    try:
+        df = pd.read_csv(path, nrows=nrows)
+    except (OSError, ValueError, pd.errors.ParserError) as exc:  # EmptyDataError and decoding errors are ValueErrors
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise StoredResultError(f"{path}: not a readable CSV ({first})") from None
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        raise StoredResultError(f"{path}: missing column(s) {missing}; is this a marinebench metrics.csv?")
+    for col in ("seed", "value"):
+        if col in need and not pd.api.types.is_numeric_dtype(df[col]):
+            raise StoredResultError(f"{path}: column '{col}' is not numeric")
+    return df[usecols] if usecols else df
+
+
+def read_manifest(d: Path) -> dict:
+    """``d/manifest.json`` as a mapping ({} when there is none)."""
+    path = d / "manifest.json"
+    if not path.exists():
+        return {}
+    try:
+        doc = json.loads(_text(path))
+    except json.JSONDecodeError as exc:
+        raise StoredResultError(f"{path}: invalid JSON: line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    if not isinstance(doc, dict):
+        raise StoredResultError(f"{path}: expected a JSON object at the top level")
+    return doc
+
+
+def read_resolved(d: Path) -> dict:
+    """``d/config.resolved.yaml`` as a mapping ({} when there is none)."""
+    path = d / "config.resolved.yaml"
+    if not path.exists():
+        return {}
+    try:
+        doc = yaml.safe_load(_text(path))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+        raise StoredResultError(f"{path}: invalid YAML: {where}{getattr(exc, 'problem', None) or exc}") from None
+    if not isinstance(doc, dict):
+        raise StoredResultError(f"{path}: expected a mapping at the top level")
+    return doc
