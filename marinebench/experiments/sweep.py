@@ -393,6 +393,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     import shutil
 
     from marinebench.experiments.cluster import ChunkFailed
+    from marinebench.experiments.runner import steps
     from marinebench.provenance import inputs_key
     from marinebench.results.writer import atomic_write_text
 
@@ -407,7 +408,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     atomic_write_text(partial / "key", key)
     chunks = chunks_of(exp, chunk_size)
     paths = [partial / f"chunk-{c:04d}.csv" for c in range(len(chunks))]
-    n_steps = round(exp.scenario.horizon / exp.scenario.dt)
+    n_steps = steps(exp)
     if on_start is not None:
         on_start(n_steps * len(chunks))
     pending = [c for c, path in enumerate(paths) if not path.exists()]
