@@ -140,3 +140,30 @@ def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
     (tmp_path / "notes.txt").write_text("not a source\n")  # files outside the sources do not count
     (tmp_path / "configs" / "a.yaml").write_text("seed: 1\n")
     assert copy.git_revision() == head
+
+
+def test_summary_per_cell_in_order_of_first_appearance_diverged_runs_counted_not_averaged():
+    import pandas as pd
+
+    from marinebench.experiments.runner import summarise
+
+    rng = np.random.default_rng(3)
+    rows = []
+    for variant in ("b", "a"):  # not sorted: the summary keeps the order the runs came in
+        for seed in range(6):
+            for signal in ("u", "r"):
+                diverged = variant == "a" and signal == "u" and seed in (1, 4)
+                rows.append(("S", variant, seed, signal, "std", np.nan if diverged else rng.random(),
+                             "diverged" if diverged else "ok"))
+    df = pd.DataFrame(rows, columns=["scenario", "variant", "seed", "signal", "metric", "value", "status"])
+    df = df.sample(frac=1.0, random_state=1).reset_index(drop=True)  # cells interleaved
+    out = summarise(df)
+    first = df.drop_duplicates(["variant", "signal"])[["variant", "signal"]].apply(tuple, axis=1).tolist()
+    assert list(zip(out["variant"], out["signal"])) == first
+    for _, row in out.iterrows():
+        cell = df[(df["variant"] == row["variant"]) & (df["signal"] == row["signal"])]
+        good = cell.loc[cell["status"] == "ok", "value"].to_numpy()
+        assert (row["n"], row["n_diverged"]) == (good.size, len(cell) - good.size)
+        assert (row["mean"], row["ci_low"], row["ci_high"]) == mean_ci(good)
+    assert out.set_index(["variant", "signal"]).loc[("a", "u"), "n_diverged"] == 2
+    assert summarise(df.iloc[:0]).empty

@@ -357,11 +357,22 @@ def _undisturbed_truth(exp: Experiment, run_variant, run_seed, signals: list[str
 
 
 def summarise(metrics: pd.DataFrame, level: float = 0.95) -> pd.DataFrame:
-    """Mean and CI over seeds per (scenario, variant, signal, metric), diverged runs excluded and counted."""
-    out = []
+    """Mean and CI over seeds per (scenario, variant, signal, metric), diverged runs excluded and counted;
+    groups in order of first appearance. (Positions per group from one ``ngroup``, not a pandas filter per
+    group: a sweep's chunk has thousands of groups.)"""
     keys = ["scenario", "variant", "signal", "metric"]
-    for key, g in metrics.groupby(keys, sort=False):
-        ok = g[g["status"] == "ok"]["value"].to_numpy()
-        m, lo, hi = mean_ci(ok, level)
-        out.append((*key, m, lo, hi, int(ok.size), int((g["status"] != "ok").sum())))
-    return pd.DataFrame(out, columns=[*keys, "mean", "ci_low", "ci_high", "n", "n_diverged"])
+    columns = [*keys, "mean", "ci_low", "ci_high", "n", "n_diverged"]
+    if metrics.empty:
+        return pd.DataFrame([], columns=columns)
+    codes = metrics.groupby(keys, sort=False).ngroup().to_numpy()
+    first = metrics.loc[~metrics.duplicated(keys), keys]  # row i is group i: ngroup numbers by first appearance
+    order = np.argsort(codes, kind="stable")
+    bounds = np.searchsorted(codes[order], np.arange(len(first) + 1))
+    ok, values = (metrics["status"] == "ok").to_numpy(), metrics["value"].to_numpy(dtype=float)
+    out = []
+    for i, key in enumerate(first.itertuples(index=False, name=None)):
+        rows = order[bounds[i]:bounds[i + 1]]
+        good = values[rows[ok[rows]]]
+        m, lo, hi = mean_ci(good, level)
+        out.append((*key, m, lo, hi, int(good.size), int(rows.size - good.size)))
+    return pd.DataFrame(out, columns=columns)
