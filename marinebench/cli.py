@@ -31,6 +31,22 @@ err = Console(stderr=True, highlight=False, soft_wrap=True)
 out = Console(highlight=False, soft_wrap=True)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from marinebench import __version__
+        from marinebench.results.writer import git_revision
+
+        revision = git_revision()
+        out.print(f"marinebench {__version__}" + (f" (git {revision})" if revision != "unknown" else ""), markup=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
+                                                   help="print the version (and git revision) and exit")] = False) -> None:
+    """Simulation benchmarks for marine-vehicle observers."""
+
+
 def fail(message: str, code: int = 2) -> None:
     err.print(f"error: {message}", markup=False)
     raise typer.Exit(code)
@@ -555,8 +571,9 @@ def main(args: list[str] | None = None) -> None:
     try:
         code = app(args=args, prog_name="marinebench", standalone_mode=False)
     except _USAGE_ERROR as exc:
-        command = exc.ctx.command_path if exc.ctx else "marinebench"
-        err.print(f"error: {' '.join(exc.format_message().split())} (see '{command} --help')", markup=False)
+        message, command = " ".join(exc.format_message().split()), exc.ctx.command_path if exc.ctx else "marinebench"
+        if message:  # (none when no arguments printed the help)
+            err.print(f"error: {message} (see '{command} --help')", markup=False)
         sys.exit(2)
     except _CLICK_EXCEPTION as exc:
         exc.show()

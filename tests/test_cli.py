@@ -154,6 +154,19 @@ def test_the_console_entry_point_keeps_the_commands_exit_codes(tiny_config, tmp_
     with pytest.raises(SystemExit) as exit_:
         main(["--help"])
     assert exit_.value.code == 0 and "Usage: marinebench" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        main([])  # no arguments: the help, and no empty error line
+    captured = capsys.readouterr()
+    assert exit_.value.code == 2 and "Usage: marinebench" in captured.out and captured.err == ""
+
+
+def test_version():
+    from marinebench import __version__
+    from marinebench.results.writer import git_revision
+
+    res = runner.invoke(app, ["--version"])
+    assert res.exit_code == 0
+    assert res.output.strip() in (f"marinebench {__version__}", f"marinebench {__version__} (git {git_revision()})")
 
 
 def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_path):
