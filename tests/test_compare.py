@@ -268,3 +268,11 @@ def test_a_damaged_result_file_is_one_line_naming_it(case, command, tmp_path, ba
     assert res.exit_code == 2 and len(lines) == 1 and "Traceback" not in res.output, res.output
     assert lines[0].startswith(f"error: {cand / name}") and expected in lines[0], lines[0]
     assert not (tmp_path / "r.html").exists()
+
+
+def test_report_names_a_table_that_is_not_utf8(tmp_path, base_values):
+    d = write_result(tmp_path / "res", "exp", base_values)
+    (d / "table.md").write_bytes(b"| a |\n\xff")
+    res = runner.invoke(app, ["report", str(tmp_path / "res"), "--out", str(tmp_path / "r.html")])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {d / 'table.md'}: not UTF-8 text (byte 6)"
+    assert not (tmp_path / "r.html").exists()

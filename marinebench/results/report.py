@@ -8,7 +8,7 @@ import re
 from pathlib import Path
 
 from marinebench.results.compare import compare_dirs, find_results, to_markdown
-from marinebench.results.stored import read_manifest
+from marinebench.results.stored import read_manifest, read_text
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
@@ -107,7 +107,7 @@ def render_report(results: Path, compare_with: Path | None = None) -> str:
         parts.append(f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>')
         for md in ("table.md", "claims.md"):
             if (d / md).exists():
-                parts.append(markdown_to_html((d / md).read_text()))
+                parts.append(markdown_to_html(read_text(d / md)))
         for png in sorted((d / "figures").glob("*.png")):
             data = base64.b64encode(png.read_bytes()).decode()
             parts.append(f'<figure><img alt="{html.escape(png.name)}" src="data:image/png;base64,{data}">'

@@ -20,7 +20,8 @@ class StoredResultError(MarinebenchError):
     """A result file that cannot be read back."""
 
 
-def _text(path: Path) -> str:
+def read_text(path: Path) -> str:
+    """A result's text file (``table.md``, ``claims.md``), UTF-8."""
     try:
         return path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -52,7 +53,7 @@ def read_manifest(d: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        doc = json.loads(_text(path))
+        doc = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise StoredResultError(f"{path}: invalid JSON: line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
     if not isinstance(doc, dict):
@@ -66,7 +67,7 @@ def read_resolved(d: Path) -> dict:
     if not path.exists():
         return {}
     try:
-        doc = yaml.safe_load(_text(path))
+        doc = yaml.safe_load(read_text(path))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
