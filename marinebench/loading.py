@@ -249,6 +249,8 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
     msg = err["msg"].removeprefix("Value error, ")
     if unknown:
         msg = "unknown key"
+    elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
+        msg += " (YAML reads an unquoted true, false, yes, no, on or off as a boolean: quote the word)"
     where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
     if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'
         key, msg = where.groups()

@@ -169,6 +169,18 @@ def test_version():
     assert res.output.strip() in (f"marinebench {__version__}", f"marinebench {__version__} (git {git_revision()})")
 
 
+def test_an_unquoted_true_where_a_word_is_expected_gets_a_hint(tmp_path):
+    """`depth_rate: true` (the option named 'true') is a YAML boolean: the error says why it was refused."""
+    scenario = tmp_path / "s1.yaml"
+    scenario.write_text((ROOT / "scenarios" / "rov_s1.yaml").read_text().replace("depth_rate: difference", "depth_rate: true"))
+    res = runner.invoke(app, ["validate", str(scenario)])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {scenario}: sensors.depth_rate: Input should be 'difference' or 'true' (YAML reads an unquoted true, "
+        "false, yes, no, on or off as a boolean: quote the word)")
+    scenario.write_text(scenario.read_text().replace("depth_rate: true", "depth_rate: 'true'"))
+    assert runner.invoke(app, ["validate", str(scenario)]).exit_code == 0
+
+
 def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_path):
     twice = tmp_path / "twice.yaml"
     twice.write_text(tiny_config.read_text() + "seeds: 3\n")  # the tiny config already says seeds: 2

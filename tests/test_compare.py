@@ -243,6 +243,8 @@ def test_a_reference_older_than_an_option_still_pairs(tmp_path):
 DAMAGED = {
     "manifest_not_json": ("manifest.json", b"{bad", "manifest.json: invalid JSON: line 1, column 2"),
     "manifest_not_object": ("manifest.json", b"[1]", "manifest.json: expected a JSON object at the top level"),
+    "manifest_bad_claims": ("manifest.json", b'{"claims": [{"text": "x"}]}',
+                            "manifest.json: claims: expected a list of objects with 'text' and 'holds'"),
     "resolved_not_yaml": ("config.resolved.yaml", b"x: [\n", "config.resolved.yaml: invalid YAML: line 2"),
     "metrics_empty": ("metrics.csv", b"", "metrics.csv: not a readable CSV"),
     "metrics_no_rows": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\n", "metrics.csv: no rows"),

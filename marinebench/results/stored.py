@@ -8,9 +8,8 @@ import json
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
-from marinebench.errors import MarinebenchError
+from marinebench.errors import ConfigError, MarinebenchError
 
 #: Columns every ``metrics.csv`` written by ``run`` or ``sweep`` has (``status`` is optional: older files).
 METRICS_COLUMNS = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value"]
@@ -58,20 +57,20 @@ def read_manifest(d: Path) -> dict:
         raise StoredResultError(f"{path}: invalid JSON: line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
     if not isinstance(doc, dict):
         raise StoredResultError(f"{path}: expected a JSON object at the top level")
+    claims = doc.get("claims", [])
+    if not isinstance(claims, list) or not all(isinstance(c, dict) and {"text", "holds"} <= set(c) for c in claims):
+        raise StoredResultError(f"{path}: claims: expected a list of objects with 'text' and 'holds'")
     return doc
 
 
 def read_resolved(d: Path) -> dict:
-    """``d/config.resolved.yaml`` as a mapping ({} when there is none)."""
+    """``d/config.resolved.yaml`` as a mapping ({} when there is none), read like a config file."""
+    from marinebench.loading import read_yaml
+
     path = d / "config.resolved.yaml"
     if not path.exists():
         return {}
     try:
-        doc = yaml.safe_load(read_text(path))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise StoredResultError(f"{path}: invalid YAML: {where}{getattr(exc, 'problem', None) or exc}") from None
-    if not isinstance(doc, dict):
-        raise StoredResultError(f"{path}: expected a mapping at the top level")
-    return doc
+        return read_yaml(path)
+    except ConfigError as exc:
+        raise StoredResultError(str(exc)) from None
