@@ -150,9 +150,10 @@ def run(
     from marinebench.experiments.cluster import available_cores
     from marinebench.results.writer import writable_folder
 
-    with one_line_errors():
-        loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
     base = out_dir if out_dir is not None else Path("results")
+    with one_line_errors():
+        configs = _distinct_targets(configs, base)
+        loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
     with one_line_errors():
         writable_folder(base)
     failing = 0
@@ -163,6 +164,20 @@ def run(
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
+
+
+def _distinct_targets(configs: list[Path], base: Path) -> list[Path]:
+    """The configs, each file once (a shell glob may name one twice), refusing two files that would write the same
+    folder ``base/<stem>/``: the second would silently replace the first's results."""
+    firsts: dict[str, Path] = {}
+    distinct = []
+    for c in configs:
+        first = firsts.setdefault(c.stem, c)
+        if first is c:
+            distinct.append(c)
+        elif first.resolve() != c.resolve():
+            raise MarinebenchError(f"{c}: writes {base / c.stem}, as {first} does; run them with different --out")
+    return distinct
 
 
 def _up_to_date(exp, target: Path, quiet: bool) -> int | None:

@@ -152,7 +152,7 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
         raise ConfigError(path, "from", f"circular {what} reference to {ref}")
     if not bpath.exists():
         raise ConfigError(path, "from", f"{what} file not found: {ref}")
-    return bpath
+    return shown_path(bpath)  # errors in it then name it as the user would
 
 
 def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
@@ -186,7 +186,16 @@ def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dic
     bpath = _from_path(doc.pop("from"), path, seen, "experiment")
     base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
     base.pop("name", None)  # the derived file is its own experiment
-    return base, {**{k: v for k, v in origins.items() if k}, "from": shown_path(bpath)}
+    origins = {**{k: v for k, v in origins.items() if k}, "from": shown_path(bpath)}
+    for dotted in _own_leaves(base):  # a bad key there is named in that file (unless it came from further back)
+        origins.setdefault("override " + dotted, bpath)
+    return base, origins
+
+
+def _own_leaves(doc: dict) -> list[str]:
+    """The dotted leaves of an experiment document's keys outside its world (whose origins are tracked apart)."""
+    return [leaf for k, v in doc.items() if k not in ("name", "from", "scenario", "scenarios")
+            for leaf in (_leaf_paths(v, k) if isinstance(v, dict) and v else [k])]
 
 
 def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None,
@@ -202,6 +211,9 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
             if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
                 v[part]["source"] = resolve_source(v[part]["source"], path.parent)
     origins[""] = path
+    if base:
+        for dotted in _own_leaves(doc):  # this file's keys over the base's
+            origins["override " + dotted] = path
     if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
         for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
             origins["override " + dotted] = path

@@ -311,6 +311,40 @@ def test_experiment_from_another_experiment(tiny_config, tmp_path):
     assert res.exit_code == 2 and "circular experiment reference" in res.output, res.output
 
 
+def test_a_bad_key_is_named_in_the_file_of_the_from_chain_that_holds_it(tiny_config, tmp_path):
+    """derived -> middle -> tiny: a bad key is reported in the file it is written in, and a file later in the
+    chain that sets the key again takes it over."""
+    middle, derived = tmp_path / "middle.yaml", tmp_path / "derived.yaml"
+    middle.write_text(yaml.safe_dump({"from": tiny_config.name, "seeds": 0}))
+    derived.write_text(yaml.safe_dump({"from": "middle.yaml", "description": "d"}))
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {middle}: seeds: Input should be greater than or equal to 1", res.output
+    derived.write_text(yaml.safe_dump({"from": "middle.yaml", "seeds": 3}))
+    assert runner.invoke(app, ["validate", str(derived)]).exit_code == 0
+    derived.write_text(yaml.safe_dump({"from": "middle.yaml", "seeds": 3, "table": {"metric": "nope"}}))
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 2 and res.output.startswith(f"error: {derived}: "), res.output
+    middle.write_text(yaml.safe_dump({"from": tiny_config.name, "bogus": 1}))
+    derived.write_text(yaml.safe_dump({"from": "middle.yaml", "seeds": 3}))
+    res = runner.invoke(app, ["validate", str(derived)])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {middle}: bogus: unknown key", res.output
+
+
+def test_two_configs_that_would_write_one_folder_are_refused(tiny_config, tmp_path):
+    """Two files with the same stem write the same results/<stem>/: the second would silently replace the
+    first, so the run is refused before anything runs; one file named twice (overlapping globs) runs once."""
+    (tmp_path / "other").mkdir()
+    other = tmp_path / "other" / tiny_config.name
+    other.write_text(yaml.safe_dump({"from": str(tiny_config), "seeds": 1}))
+    res = runner.invoke(app, ["run", str(tiny_config), str(other), "--out", str(tmp_path / "o"), "--quiet"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {other}: writes {tmp_path / 'o' / 'tiny'}, as {tiny_config} does; run them with different --out")
+    assert not (tmp_path / "o").exists()
+    twice = runner.invoke(app, ["run", str(tiny_config), str(tmp_path / "." / "tiny.yaml"), "--out", str(tmp_path / "o"),
+                                "--jobs", "1"])
+    assert twice.exit_code == 0 and twice.output.count("-> ") == 1, twice.output
+
+
 def test_wrong_kind_of_input_is_one_line(tmp_path):
     scenario = ROOT / "scenarios" / "rov_s1.yaml"
     res = runner.invoke(app, ["run", str(scenario), "--out", str(tmp_path / "o")])

@@ -172,6 +172,16 @@ def test_unusable_inputs_exit_2(tmp_path, base_values):
         assert len(res.output.strip().splitlines()) == 1
 
 
+def test_a_metric_no_cell_has_is_refused(tmp_path, base_values):
+    """A mistyped --metric would leave nothing to compare, and a gate that compares nothing passes."""
+    write_result(tmp_path / "base", "exp", base_values)
+    for args in ([str(tmp_path / "base"), str(tmp_path / "base")], [str(tmp_path / "base" / "exp"), "--variants", "a", "b"]):
+        res = runner.invoke(app, ["compare", *args, "--metric", "std", "--metric", "sdt"])
+        assert res.exit_code == 2 and res.output.strip() == "error: --metric: no cell has metric 'sdt' (have: claim, std)"
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "base"), "--metric", "claim"])
+    assert res.exit_code == 2 and "no cell in common" in res.output, res.output  # no manifests, so no claims either
+
+
 def test_tree_with_duplicate_experiment_is_unusable(tmp_path, base_values):
     write_result(tmp_path / "tree" / "x", "exp", base_values)
     write_result(tmp_path / "tree" / "y", "exp", base_values)

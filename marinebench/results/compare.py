@@ -67,14 +67,25 @@ def find_results(root: Path) -> dict[str, Path]:
     return found
 
 
-def load_metrics(dirs: dict[str, Path], metrics: list[str] | None = None) -> pd.DataFrame:
+def load_metrics(dirs: dict[str, Path]) -> pd.DataFrame:
     frames = [read_metrics(d / "metrics.csv") for d in dirs.values()]
     df = pd.concat(frames, ignore_index=True)
     if "status" not in df:
         df["status"] = "ok"
-    if metrics:
-        df = df[df["metric"].isin(metrics)]
     return df
+
+
+def select_metrics(frames: list[pd.DataFrame], metrics: list[str] | None) -> list[pd.DataFrame]:
+    """The rows of ``metrics`` (all without), refusing a name no frame has: a mistyped ``--metric`` would
+    otherwise leave nothing to compare, and a gate that compares nothing passes."""
+    if not metrics:
+        return frames
+    have = set().union(*(set(f["metric"]) for f in frames))
+    unknown = [m for m in metrics if m not in have | {"claim"}]
+    if unknown:
+        raise CompareInputError(f"--metric: no cell has metric {', '.join(map(repr, unknown))} "
+                                f"(have: {', '.join(sorted(have | {'claim'}))})")
+    return [f[f["metric"].isin(metrics)] for f in frames]
 
 
 def _world(d: Path) -> dict:
@@ -176,10 +187,10 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
 
 
 def require_pairs(table: pd.DataFrame) -> None:
-    """Refuse a comparison in which no cell is in both: a wrong directory, not a passing gate."""
-    if len(table) and not table["verdict"].isin(("worse", "better", "same")).any():
+    """Refuse a comparison in which no cell and no claim is in both: a wrong directory, not a passing gate."""
+    if not table["verdict"].isin(("worse", "better", "same")).any():
         raise MarinebenchError("baseline and candidate have no cell in common (experiment, scenario, variant, "
-                               "signal, metric): are these the right directories?")
+                               "signal, metric) and no claim: are these the right directories?")
 
 
 def load_claims(dirs: dict[str, Path]) -> dict[tuple[str, str], bool]:
@@ -211,19 +222,19 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     most severe first."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
     check_compatible(bdirs, cdirs)
-    table = compare_frames(load_metrics(bdirs, metrics), load_metrics(cdirs, metrics), tol)
-    require_pairs(table)
+    table = compare_frames(*select_metrics([load_metrics(bdirs), load_metrics(cdirs)], metrics), tol)
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bdirs), load_claims(cdirs))
         if len(claims):
-            table = pd.concat([table, claims], ignore_index=True)
+            table = pd.concat([table, claims], ignore_index=True) if len(table) else claims
             table = table.iloc[table["verdict"].map(SEVERITY).argsort(kind="stable")].reset_index(drop=True)
+    require_pairs(table)
     return table
 
 
 def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
     """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed."""
-    df = load_metrics(find_results(results), metrics)
+    [df] = select_metrics([load_metrics(find_results(results))], metrics)
     for v in (a, b):
         if v not in set(df["variant"]):
             raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df['variant'])))})")
