@@ -28,10 +28,10 @@ __all__ = ["load", "run", "write"]
 
 def load(path: str | Path, sets: Sequence[str] = (), profile: str | None = None) -> Experiment:
     """Read, validate and preflight an experiment YAML (``sets``: ``dotted.key=value`` overrides, as
-    ``--set``; ``profile``: a named profile of the config, as ``--profile``)."""
+    ``--set``, a list, or one string; ``profile``: a named profile of the config, as ``--profile``)."""
     from marinebench.loading import load_checked
 
-    return load_checked(path, list(sets), profile)[0]
+    return load_checked(path, [sets] if isinstance(sets, str) else list(sets), profile)[0]
 
 
 def run(experiment: Experiment, traces: bool = True) -> RunResult:

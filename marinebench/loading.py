@@ -18,7 +18,9 @@ import yaml
 from pydantic import ValidationError
 
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
+from marinebench.controllers.spec import check_built as check_controller
 from marinebench.errors import ConfigError
+from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import resolve_source, split_source
 
@@ -322,9 +324,13 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
         if closed_loop:
             if v.controller.kind == "custom":
                 try:
-                    v.controller.build(1)
+                    built = v.controller.build(1)
                 except Exception as exc:  # noqa: BLE001 - a custom controller's constructor refusing its params
                     raise ConfigError(file, f"variants.{i}.controller.params", f"{type(exc).__name__}: {exc}") from None
+                try:
+                    check_controller(built, exp.scenario.control_period)
+                except Exception as exc:  # noqa: BLE001 - the class's own code failing or returning the wrong thing
+                    raise ConfigError(file, f"variants.{i}.controller.source", f"{type(exc).__name__}: {exc}") from None
             continue
         if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
@@ -340,6 +346,11 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             if v.observer.kind != "custom":
                 raise
             raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
+        if v.observer.kind == "custom":
+            try:
+                check_observer(groups[-1].observer, 1)
+            except Exception as exc:  # noqa: BLE001 - the class's own code failing or returning the wrong thing
+                raise ConfigError(file, f"variants.{i}.observer.source", f"{type(exc).__name__}: {exc}") from None
     from marinebench.rov_scenario import ROV_SIGNALS
 
     if closed_loop:

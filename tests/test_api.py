@@ -34,3 +34,10 @@ def test_bad_input_raises_a_config_error_naming_file_and_key(tmp_path):
     bad.write_text(f"from: {CONFIG}\nseeds: 0\n")
     with pytest.raises(ConfigError, match=r"bad\.yaml: seeds: Input should be greater than or equal to 1"):
         mb.load(bad)
+
+
+def test_one_override_may_be_a_plain_string():
+    """``sets="seeds=3"`` is one override, not a sequence of one-character ones."""
+    assert mb.load(CONFIG, sets="seeds=3").seeds == 3
+    with pytest.raises(ConfigError, match=r"--set: scenario\.dt: Input should be greater than 0"):
+        mb.load(CONFIG, sets="scenario.dt=-1")

@@ -110,6 +110,29 @@ def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, t
         assert message in lines[0], lines[0]
 
 
+WRONG_RETURNS = {  # an edit of earth_eso.py -> what the one-line error says
+    "rate": (("        return float(self.omega.max())", '        return "fast"'),
+             "EarthFrameEso.max_rate() returned 'fast': expected a finite number >= 0 (rad/s)"),
+    "init": (("        return np.zeros((self.omega.size, self.n_state))", "        return np.zeros(self.n_state)"),
+             "EarthFrameEso.init() has shape (9,): expected (B, n_state) = (1, 9)"),
+    "missing": (('return {"u": u, ', "return {"), "EarthFrameEso.outputs() lacks ['u'], declared in its signals"),
+    "shape": (('return {"u": u, ', 'return {"u": u[:0], '), "EarthFrameEso.outputs()['u'] has shape (0,): expected (B,) = (1,)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(WRONG_RETURNS))
+def test_a_custom_observer_returning_the_wrong_thing_is_refused_before_running(example, tmp_path, case):
+    """The built class is asked for max_rate, init and outputs at validation: a mistake in it is a config error
+    naming the variant, not a traceback in the engine (or, for a bad shape, wrong numbers)."""
+    (old, new), message = WRONG_RETURNS[case]
+    source = example.parent / "earth_eso.py"
+    assert old in source.read_text()
+    source.write_text(source.read_text().replace(old, new))
+    res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {example}: variants.2.observer.source: ValueError: {message}"
+    assert not (tmp_path / "out").exists()
+
+
 CONTROLLER = ROOT / "examples" / "custom_controller"
 
 
@@ -149,6 +172,8 @@ def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_examp
      "a custom controller takes its settings in 'params' (not preset, depth, yaw)"),
     ("source: pid.py:Pid, params: {depth: {kq: 1.0}}", "variants.2.controller.params",
      "ValueError: unknown PID settings ['depth.kq']"),
+    ("source: pid.py:Pid, params: {depth: {kp: .nan}}", "variants.2.controller.source",
+     "ValueError: Pid.command() at zero error returned [[nan, 0.0]] of shape (1, 2): expected finite (B, 2) = (1, 2)"),
 ])
 def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_example, tmp_path, edit, key, message):
     text = controller_example.read_text()

@@ -93,3 +93,13 @@ class ControllerSpec(BaseModel):
         if self.kind == "custom":
             return user_class(self.source, CUSTOM_MEMBERS)(self.params, batch)
         return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)
+
+
+def check_built(controller: Any, h: float) -> None:
+    """A custom controller built for one run, asked once for its command at zero error (ValueError unless it is
+    a finite (1, 2) array): a mistake in the class is then a config error before anything runs."""
+    zero = np.zeros((1, 2))
+    tau = np.asarray(controller.command(zero, zero.copy(), h), dtype=float)
+    if tau.shape != (1, 2) or not np.all(np.isfinite(tau)):
+        raise ValueError(f"{type(controller).__name__}.command() at zero error returned {tau.tolist()!r} of shape "
+                         f"{tau.shape}: expected finite (B, 2) = (1, 2), depth and yaw")

@@ -19,14 +19,18 @@ protocol of :mod:`marinebench.observers.base`:
     the known thrust, both ``(B, 3)``); or ``discrete = True`` and ``step(xhat, y, tau, k) -> xhat``.
 
 The class is loaded and checked when the config is validated, so a missing file, a class without these
-members or a world it does not apply to is a one-line config error. Runs record the source's SHA-256 in the
+members, a world it does not apply to, or an instance whose ``max_rate``, ``init`` or ``outputs`` returns the
+wrong thing (:func:`check_built`) is a one-line config error. Runs record the source's SHA-256 in the
 manifest. With ``sweep --dask``, the file must be at the same path on the workers.
 """
 
 from __future__ import annotations
 
+import math
+from numbers import Real
 from typing import Any, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from marinebench.plugins import split_source, user_class
@@ -47,6 +51,27 @@ def observer_class(source: str) -> type:
     if unknown:
         raise ValueError(f"{name}.scenario_kinds: {sorted(unknown)} (custom observers apply to {', '.join(SCENARIO_KINDS)})")
     return cls
+
+
+def check_built(observer: Any, n_runs: int) -> None:
+    """What a built observer returns, checked before anything runs (ValueError naming the member): ``max_rate()``
+    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,).
+    Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong numbers."""
+    name = type(observer).__name__
+    rate = observer.max_rate()
+    if not isinstance(rate, Real) or not math.isfinite(rate) or rate < 0:
+        raise ValueError(f"{name}.max_rate() returned {rate!r}: expected a finite number >= 0 (rad/s)")
+    x0 = np.asarray(observer.init())
+    if x0.shape != (n_runs, observer.n_state):
+        raise ValueError(f"{name}.init() has shape {x0.shape}: expected (B, n_state) = ({n_runs}, {observer.n_state})")
+    out = observer.outputs(x0)
+    missing = [s for s in observer.signals if s not in out]
+    if missing:
+        raise ValueError(f"{name}.outputs() lacks {missing}, declared in its signals")
+    wrong = {s: np.shape(out[s]) for s in observer.signals if np.shape(out[s]) != (n_runs,)}
+    if wrong:
+        s, shape = next(iter(wrong.items()))
+        raise ValueError(f"{name}.outputs()['{s}'] has shape {shape}: expected (B,) = ({n_runs},)")
 
 
 class CustomTuning(BaseModel):
