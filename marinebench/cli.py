@@ -170,14 +170,18 @@ def _distinct_targets(configs: list[Path], base: Path) -> list[Path]:
     """The configs, each file once (a shell glob may name one twice), refusing two files that would write the same
     folder ``base/<stem>/``: the second would silently replace the first's results."""
     firsts: dict[str, Path] = {}
-    distinct = []
     for c in configs:
-        first = firsts.setdefault(c.stem, c)
-        if first is c:
-            distinct.append(c)
+        first = firsts.get(c.stem)
+        if first is None:
+            firsts[c.stem] = c
         elif first.resolve() != c.resolve():
-            raise MarinebenchError(f"{c}: writes {base / c.stem}, as {first} does; run them with different --out")
-    return distinct
+            raise MarinebenchError(f"{c}: writes {_target(base, c)}, as {first} does; run them with different --out")
+    return list(firsts.values())
+
+
+def _target(base: Path, config: Path) -> Path:
+    """The folder an experiment file's results go to: ``base/<config stem>/``."""
+    return base / config.stem
 
 
 def _up_to_date(exp, target: Path, quiet: bool) -> int | None:
@@ -205,7 +209,7 @@ def _skip_current(loaded: list, base: Path, quiet: bool) -> tuple[list, int]:
     todo, failing = [], 0
     for item in loaded:
         path, exp, _ = item
-        known = _up_to_date(exp, base / path.stem, quiet)
+        known = _up_to_date(exp, _target(base, path), quiet)
         if known is None:
             todo.append(item)
         else:
@@ -223,7 +227,7 @@ def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
         ) as bar:
             task = bar.add_task(exp.name, total=1)
             line, warning, n_failing = _run_and_write(
-                path, exp, origins, base / path.stem,
+                path, exp, origins, _target(base, path),
                 progress=lambda n, task=task: bar.advance(task, n),
                 on_start=lambda n, task=task: bar.update(task, total=n),
             )
@@ -245,7 +249,7 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
 
     errors, failing = [], 0
     order = sorted(loaded, key=lambda item: run_steps(item[1]), reverse=True)  # the longest first
-    tasks = {i: (path, exp, origins, base / path.stem) for i, (path, exp, origins) in enumerate(order)}
+    tasks = {i: (path, exp, origins, _target(base, path)) for i, (path, exp, origins) in enumerate(order)}
     # the pool first: its workers are forked before the progress bar starts its thread
     with local_pool(jobs) as pool, Progress(
         TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),

@@ -188,7 +188,7 @@ def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dic
     bpath = _from_path(doc.pop("from"), path, seen, "experiment")
     base, origins = resolve_document(bpath, _seen=(*seen, path.resolve()))
     base.pop("name", None)  # the derived file is its own experiment
-    origins = {**{k: v for k, v in origins.items() if k}, "from": shown_path(bpath)}
+    origins = {**{k: v for k, v in origins.items() if k}, "from": bpath}
     for dotted in _own_leaves(base):  # a bad key there is named in that file (unless it came from further back)
         origins.setdefault("override " + dotted, bpath)
     return base, origins
@@ -213,11 +213,11 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
             if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
                 v[part]["source"] = resolve_source(v[part]["source"], path.parent)
     origins[""] = path
-    if base:
-        for dotted in _own_leaves(doc):  # this file's keys over the base's
-            origins["override " + dotted] = path
-    if base and isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
-        for dotted in _leaf_paths(doc["scenario"], "scenario"):  # keys this file overrides in the base's world
+    if base:  # this file's keys over the base's, with those it overrides in the base's world
+        leaves = _own_leaves(doc)
+        if isinstance(doc.get("scenario"), dict) and "from" not in doc["scenario"]:
+            leaves += _leaf_paths(doc["scenario"], "scenario")
+        for dotted in leaves:
             origins["override " + dotted] = path
     if "scenario" in doc:
         doc["scenario"] = _inline_scenario(doc["scenario"], path, "scenario", origins)
