@@ -6,6 +6,7 @@ from hypothesis import strategies as st
 from marinebench.errors import ConfigError
 from marinebench.loading import apply_set
 from marinebench.metrics.stats import mean_ci
+from marinebench.results import writer
 from marinebench.results.writer import atomic_directory, atomic_write_text
 from marinebench.scenario import stream_rngs
 from marinebench.sensors.noise import BandLimitedUniform
@@ -79,6 +80,30 @@ def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
         (d / "a.txt").write_text("half")
         raise RuntimeError("interrupted")
     assert (target / "a.txt").read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["exp"]
+
+
+def test_atomic_directory_swaps_in_one_step_on_linux(tmp_path, monkeypatch):
+    """The previous results are exchanged with the new ones by one renameat2 (Linux, where marinebench's CI
+    runs): os.replace, which would leave a moment without the folder, is not called."""
+    target = tmp_path / "exp"
+    with atomic_directory(target) as d:
+        (d / "a.txt").write_text("old")
+    monkeypatch.setattr(writer.os, "replace", lambda *a: pytest.fail("two-step rename used"))
+    with atomic_directory(target) as d:
+        (d / "a.txt").write_text("new")
+    assert (target / "a.txt").read_text() == "new"
+    assert [p.name for p in tmp_path.iterdir()] == ["exp"]
+
+
+def test_atomic_directory_falls_back_to_two_renames(tmp_path, monkeypatch):
+    """Where no exchange exists (another OS, an old C library, a file system without it), the same result."""
+    monkeypatch.setattr(writer, "_exchange", lambda a, b: False)
+    target = tmp_path / "exp"
+    for text in ("old", "new"):
+        with atomic_directory(target) as d:
+            (d / "a.txt").write_text(text)
+    assert (target / "a.txt").read_text() == "new"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
 
