@@ -314,30 +314,17 @@ def sweep(
     from contextlib import nullcontext
 
     from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
-    from marinebench.experiments.grid import (
-        grid_claims,
-        grid_claims_markdown,
-        grid_figure,
-        grid_manifest_entries,
-        grid_table,
-        tuning,
-    )
     from marinebench.experiments.sweep import (
         GRID_N,
         chunks_of,
         discard_partial,
         run_chunked,
-        sweep_claims,
         sweep_experiment,
-        sweep_figure,
         sweep_suffix,
-        sweep_table,
     )
-    from marinebench.provenance import inputs_key
-    from marinebench.results.claims import manifest_entries, summary_line
-    from marinebench.results.claims import markdown as claims_markdown
-    from marinebench.results.outputs import model_assumptions, resolved_yaml
-    from marinebench.results.writer import atomic_directory, manifest, writable_folder
+    from marinebench.results.claims import summary_line
+    from marinebench.results.outputs import write_sweep
+    from marinebench.results.writer import writable_folder
 
     if chunk_size < 1:
         fail("--chunk-size: must be at least 1")
@@ -384,32 +371,12 @@ def sweep(
                                            on_start=lambda k: bar.update(task, total=k), pool=pool)
         wall = _time.perf_counter() - t_sim
         bar.update(task, completed=bar.tasks[0].total)
-    shown = base.sweep.shown
-    claims = [] if grid else sweep_claims(metrics, base.sweep)
-    mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
-    table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
     try:
-        with atomic_directory(target) as tmp:
-            metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-            (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
-            (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
-            if claims:
-                (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
-            if mapped:
-                own = {p: tuning(base, p) for p in params}
-                (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
-            (tmp / "figures").mkdir()
-            figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
-            (tmp / "manifest.json").write_text(manifest(
-                experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)}, overrides=set_ or [],
-                seed=exp.seed, seeds=exp.seeds,
-                runs=len(exp.variants) * exp.seeds,
-                params=params, grid=grid, n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", horizon=exp.scenario.horizon,
-                dt=exp.scenario.dt, chunk_size=chunk_size, chunks_run=ran, executor=executor,
-                wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
-                total_time_s=round(_time.perf_counter() - t0, 3),
-                assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
-                claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
+        claims, mapped = write_sweep(
+            target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
+            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", chunk_size=chunk_size, chunks_run=ran,
+            executor=executor, wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
+        )
     except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
         fail(f"{target}: cannot write results ({exc.strerror or exc})")
     discard_partial(target)

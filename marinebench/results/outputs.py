@@ -1,12 +1,23 @@
-"""Write one experiment's result directory atomically."""
+"""Write an experiment's or a sweep's result directory atomically."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
+import pandas as pd
 import yaml
 
+from marinebench.experiments.grid import (
+    grid_claims,
+    grid_claims_markdown,
+    grid_figure,
+    grid_manifest_entries,
+    grid_table,
+    tuning,
+)
 from marinebench.experiments.runner import RunResult
+from marinebench.experiments.sweep import sweep_claims, sweep_figure, sweep_table
 from marinebench.plotting.figures import timeseries, tracking
 from marinebench.provenance import inputs_key
 from marinebench.results.claims import ClaimResult, manifest_entries
@@ -90,3 +101,37 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
             )
         )
     return out_dir
+
+
+def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, params: list[str], grid: bool,
+                started: float, **run_info) -> tuple[list[ClaimResult], list]:
+    """Write a sweep's result directory atomically: ``metrics.csv``, ``config.resolved.yaml`` (of ``base``, the
+    config swept), ``table.md`` (a table, or with ``grid`` a matrix, per shown metric), ``claims.md`` (the checks
+    of ``sweep.claims``, or with ``grid`` where along the grid each holds), ``figures/`` and ``manifest.json``.
+
+    ``exp`` is the sweep's experiment (one variant per point), ``started`` the ``time.perf_counter()`` at which
+    the command started, ``run_info`` what the manifest records of how the sweep ran (overrides, points, groups,
+    batches, executor, times). Returns the checked claims and the claims mapped over a grid."""
+    shown = base.sweep.shown
+    claims = [] if grid else sweep_claims(metrics, base.sweep)
+    mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
+    table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
+    with atomic_directory(target) as tmp:
+        metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
+        (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
+        if claims:
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
+        if mapped:
+            own = {p: tuning(base, p) for p in params}
+            (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
+        (tmp / "figures").mkdir()
+        figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
+        (tmp / "manifest.json").write_text(manifest(
+            experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)},
+            seed=exp.seed, seeds=exp.seeds, runs=len(exp.variants) * exp.seeds, params=params, grid=grid,
+            horizon=exp.scenario.horizon, dt=exp.scenario.dt, **run_info,
+            total_time_s=round(time.perf_counter() - started, 3),
+            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
+            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
+    return claims, mapped
