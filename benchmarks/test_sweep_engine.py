@@ -15,13 +15,12 @@ memory. Runs are 20 s long, so a round takes seconds; the speed-up grows with th
 ``marinebench bench``, which also extrapolates to the full sweep).
 """
 
-import time
 import tracemalloc
 from pathlib import Path
 
 import pytest
 
-from marinebench.experiments.reference import reference_run
+from marinebench.experiments.reference import against_reference
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
 from marinebench.loading import load_experiment
@@ -40,14 +39,8 @@ def sweep():
 def test_batched_sweep_is_at_least_10x_the_per_run_loop(benchmark, sweep):
     result = benchmark.pedantic(lambda: run(sweep, traces=False), rounds=3, iterations=1, warmup_rounds=1)
     runs = len(sweep.variants)
-    picks = [0, runs // 2, runs - 1]
-    t0 = time.perf_counter()
-    refs = [reference_run(sweep, i) for i in picks]
-    per_run_reference = (time.perf_counter() - t0) / len(picks)
-    per_run_batched = benchmark.stats.stats.median / runs
-    speedup = per_run_reference / per_run_batched
-    values = result.metrics.set_index(["variant", "metric"])["value"]
-    worst = max(abs(values[sweep.variants[i].name, "J_tot"] / r["J_tot"] - 1) for i, r in zip(picks, refs))
+    per_run_reference, worst = against_reference(sweep, result.metrics, [0, runs // 2, runs - 1])
+    speedup = per_run_reference / (benchmark.stats.stats.median / runs)
     benchmark.extra_info.update(runs=runs, horizon_s=HORIZON, speedup_vs_reference=round(speedup, 1), max_rel_diff_J=worst)
     assert worst < 1e-9
     assert speedup >= 10, f"batched engine only {speedup:.1f}x faster per run than the reference loop"

@@ -404,7 +404,7 @@ def bench(
     import resource
     import time as _time
 
-    from marinebench.experiments.reference import reference_run
+    from marinebench.experiments.reference import against_reference
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.experiments.sweep import sweep_experiment
 
@@ -421,11 +421,7 @@ def bench(
     batched = run_experiment(exp, traces=False)
     t_batch = _time.perf_counter() - t0
     picks = np.linspace(0, B - 1, max(1, min(runs, B))).round().astype(int)
-    t0 = _time.perf_counter()
-    refs = [reference_run(exp, int(i)) for i in picks]
-    t_ref = (_time.perf_counter() - t0) / len(picks)
-    values = batched.metrics.set_index(["variant", "metric"])["value"]
-    worst = max(abs(values[exp.variants[i].name, "J_tot"] / r["J_tot"] - 1) for i, r in zip(picks, refs))
+    t_ref, worst = against_reference(exp, batched.metrics, picks)
     scale = full_horizon / horizon
     per_run_batched = t_batch / B
     out.print(f"runs: {B} x {horizon:g} s (sweep {params}); reference on {len(picks)} of them", markup=False)

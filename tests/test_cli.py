@@ -1,6 +1,7 @@
 """CLI through typer's CliRunner: run, validate, schema, list, and every bad-config case."""
 
 import json
+import re
 from pathlib import Path
 
 import pandas as pd
@@ -354,6 +355,22 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
     bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
     assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
     assert not (tmp_path / "o").exists()
+
+
+def test_bench_times_both_engines_on_the_same_runs_and_they_agree(tmp_path, monkeypatch):
+    """bench: 12 runs of 2 s of the Torben sweep, batched and by the per-run reference; the ratio, the
+    extrapolation and their agreement are printed, and nothing is written."""
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "2",
+                              "--horizon", "2", "--runs", "2"])
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert lines[0] == "runs: 12 x 2 s (sweep k,delta,eps); reference on 2 of them"
+    assert re.search(r"^speed-up \(same process\): [0-9.]+x$", res.output, re.MULTILINE)
+    assert "extrapolated full sweep (12 x 1000 s)" in res.output
+    worst = float(re.search(r"batched vs reference: (\S+)$", res.output, re.MULTILINE).group(1))
+    assert worst < 1e-9
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_sweep_outside_the_repository_says_where_the_default_config_is_looked_for(tmp_path, monkeypatch):

@@ -8,7 +8,11 @@ batched engine with a batch of one, so both see identical measurements.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Sequence
+
 import numpy as np
+import pandas as pd
 
 from marinebench.config import Experiment
 from marinebench.design.kalman import dp_system
@@ -88,3 +92,15 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
             phi = [np.eye(9), np.eye(9)]
             counter = 0
     return {**J, "n_jumps": float(jumps)}
+
+
+def against_reference(exp: Experiment, metrics: pd.DataFrame, picks: Sequence[int]) -> tuple[float, float]:
+    """The per-run reference on the variants ``picks`` of a DP experiment whose batched ``metrics`` are given:
+    returns the reference's seconds per run and the largest relative J_tot difference from the batch (what
+    ``marinebench bench`` and the pytest-benchmark suite report)."""
+    t0 = time.perf_counter()
+    refs = [reference_run(exp, int(i)) for i in picks]
+    per_run = (time.perf_counter() - t0) / len(picks)
+    values = metrics.set_index(["variant", "metric"])["value"]
+    worst = max(abs(values[exp.variants[int(i)].name, "J_tot"] / r["J_tot"] - 1) for i, r in zip(picks, refs))
+    return per_run, float(worst)
