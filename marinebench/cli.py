@@ -52,6 +52,12 @@ def fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+def _interrupted(what: str) -> None:
+    """Ctrl-C: say in one line what was kept and how to go on, exit 130 (typer would exit 130 silently)."""
+    err.print(f"interrupted: {what}", markup=False)
+    raise typer.Exit(130)
+
+
 @contextmanager
 def one_line_errors() -> Iterator[None]:
     """A :class:`MarinebenchError` raised inside becomes its one line on stderr and exit code 2."""
@@ -160,7 +166,11 @@ def run(
     if resume:
         loaded, failing = _skip_current(loaded, base, quiet)
     jobs = min(jobs or available_cores(), max(1, len(loaded)))
-    failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
+    try:
+        failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
+    except KeyboardInterrupt:
+        _interrupted("the experiments already written are complete, the others untouched; the same command with "
+                     "--resume runs only those not written")
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
@@ -318,6 +328,7 @@ def sweep(
         GRID_N,
         chunks_of,
         discard_partial,
+        partial_dir,
         run_chunked,
         sweep_experiment,
         sweep_suffix,
@@ -360,17 +371,22 @@ def sweep(
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
-    with one_line_errors(), where as pool, Progress(
-        TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-        TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
-    ) as bar:
-        task = bar.add_task("sweep", total=1)
-        executor = pool.describe() if pool is not None else "this process"
-        t_sim = _time.perf_counter()
-        metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
-                                           on_start=lambda k: bar.update(task, total=k), pool=pool)
-        wall = _time.perf_counter() - t_sim
-        bar.update(task, completed=bar.tasks[0].total)
+    try:
+        with one_line_errors(), where as pool, Progress(
+            TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
+            TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
+        ) as bar:
+            task = bar.add_task("sweep", total=1)
+            executor = pool.describe() if pool is not None else "this process"
+            t_sim = _time.perf_counter()
+            metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
+                                               on_start=lambda k: bar.update(task, total=k), pool=pool)
+            wall = _time.perf_counter() - t_sim
+            bar.update(task, completed=bar.tasks[0].total)
+    except KeyboardInterrupt:
+        kept = len(list(partial_dir(target).glob("chunk-*.csv")))
+        _interrupted(f"{kept} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
+                     "the same command resumes from them")
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],

@@ -208,6 +208,51 @@ def test_an_output_folder_that_cannot_be_written_fails_before_the_runs(tiny_conf
     assert a_file.read_text() == "not a folder"
 
 
+def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp_path, monkeypatch):
+    """Ctrl-C after the first of three batches: one line naming the kept batch and exit 130; the same command
+    then runs only the two others and gives the numbers of an uninterrupted sweep."""
+    from marinebench.experiments import sweep
+
+    real, calls = sweep.run_chunk, []
+
+    def first_then_ctrl_c(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    args = ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "3", "--horizon", "2",
+            "--chunk-size", "2", "--jobs", "1"]
+    monkeypatch.setattr(sweep, "run_chunk", first_then_ctrl_c)
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
+    partial = tmp_path / "a" / ".torben_fig3_sweep_k_n3_2s.partial"
+    assert res.exit_code == 130, res.output
+    assert res.output.strip().splitlines()[-1] == (
+        f"interrupted: 1 of 3 batch(es) finished and kept in {partial}; the same command resumes from them")
+    monkeypatch.setattr(sweep, "run_chunk", real)
+    res = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0 and "summed over the 2 batch(es) run" in res.output, res.output
+    assert not partial.exists()
+    whole = runner.invoke(app, [*args, "--out", str(tmp_path / "b"), "--quiet"])
+    assert whole.exit_code == 0
+    name = "torben_fig3_sweep_k_n3_2s"
+    assert (tmp_path / "a" / name / "metrics.csv").read_text() == (tmp_path / "b" / name / "metrics.csv").read_text()
+
+
+def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch):
+    from marinebench import cli
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_run_and_write", ctrl_c)
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "o"), "--jobs", "1", "--quiet"])
+    assert res.exit_code == 130 and res.output.strip() == (
+        "interrupted: the experiments already written are complete, the others untouched; the same command with "
+        "--resume runs only those not written")
+    assert list((tmp_path / "o").iterdir()) == []
+
+
 def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--set", "scenario.horizon=-1"])
     assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.horizon")

@@ -398,7 +398,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     from marinebench.results.writer import atomic_write_text
 
     key = inputs_key(exp)
-    partial = target.parent / f".{target.name}.partial"
+    partial = partial_dir(target)
     stale = partial.exists() and (
         not (partial / "key").exists() or (partial / "key").read_text().strip() != key
     )
@@ -430,7 +430,12 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     return pd.concat([pd.read_csv(path) for path in paths], ignore_index=True), wall, len(pending)
 
 
+def partial_dir(target: Path) -> Path:
+    """Where :func:`run_chunked` keeps the finished chunks of the sweep that writes ``target``."""
+    return target.parent / f".{target.name}.partial"
+
+
 def discard_partial(target: Path) -> None:
     import shutil
 
-    shutil.rmtree(target.parent / f".{target.name}.partial", ignore_errors=True)
+    shutil.rmtree(partial_dir(target), ignore_errors=True)
