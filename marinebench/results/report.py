@@ -14,6 +14,7 @@ CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
 h1 { border-bottom: 2px solid #246; } h2 { margin-top: 2em; color: #246; }
 table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.85em; }
+.scroll { overflow-x: auto; } /* a wide table scrolls by itself, not the page */
 th, td { border: 1px solid #bbb; padding: 3px 7px; text-align: left; }
 th { background: #eef2f7; } tr:nth-child(even) td { background: #fafafa; }
 img { max-width: 100%; border: 1px solid #ddd; margin: 0.5em 0; }
@@ -44,9 +45,10 @@ def markdown_to_html(md: str) -> str:
                     rows.append(cells)
                 i += 1
             head, body = rows[0], rows[1:]
-            out.append("<table><thead><tr>" + "".join(f"<th>{_inline(c)}</th>" for c in head) + "</tr></thead><tbody>")
+            out.append('<div class="scroll"><table><thead><tr>' + "".join(f"<th>{_inline(c)}</th>" for c in head)
+                       + "</tr></thead><tbody>")
             out += ["<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>" for r in body]
-            out.append("</tbody></table>")
+            out.append("</tbody></table></div>")
             continue
         if line.startswith("#"):
             level = min(len(line) - len(line.lstrip("#")) + 1, 6)
@@ -83,7 +85,7 @@ def claims_overview(dirs: dict[str, Path]) -> str:
         claims = read_manifest(d).get("claims", [])
         if claims:
             failing = [c["text"] for c in claims if not c["holds"] and not c.get("not_checked")]
-            rows.append(f"| {name} | {sum(c['holds'] for c in claims)} of {len(claims)} | "
+            rows.append(f"| {name} | {sum(c['holds'] for c in claims)}\u00a0of\u00a0{len(claims)} | "
                         + "; ".join(failing).replace("|", "/") + " |")
     if not rows:
         return ""
