@@ -57,6 +57,21 @@ def test_planted_regression_is_caught_and_listed_first(tmp_path, base_values):
     assert 25 < lo < 30 < hi < 35
 
 
+def test_seeds_run_on_one_side_only_are_left_out_and_said(tmp_path, base_values):
+    """A candidate run with more seeds than the baseline: each cell is paired on the 5 seeds both ran, the
+    JSON counts the 3 others as unpaired, and the summary says so (a gate must not hide what it compared)."""
+    write_result(tmp_path / "base", "exp", base_values, seeds=5)
+    write_result(tmp_path / "cand", "exp", base_values, seeds=8)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--format", "json"])
+    cells = json.loads(res.output)["cells"]
+    assert res.exit_code == 0 and {(c["n"], c["unpaired"], c["verdict"]) for c in cells} == {(5, 3, "same")}
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.output.splitlines()[-1] == ("4 cell(s) have seeds that only one side ran (up to 3 per cell): they are "
+                                           "left out, each cell is compared on the seeds both ran (`seeds`).")
+    same = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "base")])
+    assert "only one side ran" not in same.output
+
+
 def test_identical_results_are_all_same(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "cand", "exp", base_values)

@@ -142,6 +142,11 @@ def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 200
     return float(np.quantile(means, alpha)), float(np.quantile(means, 1 - alpha))
 
 
+COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "unpaired", "verdict"]
+"""After the cell's keys: the means over the paired seeds, change, its CI, ``n`` pairs, ``unpaired`` seeds that
+only one side ran (left out of the pairing), verdict."""
+
+
 def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS) -> pd.DataFrame:
     """One row per cell with baseline, candidate, change, CI and verdict, sorted by severity."""
     rows = []
@@ -153,13 +158,14 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
             g = bg.get(cell, cg.get(cell))
             ok = g[g["status"] == "ok"]["value"]
             row.update(baseline=ok.mean() if cell in bg else np.nan, candidate=ok.mean() if cell in cg else np.nan,
-                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, n=0,
+                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, n=0, unpaired=0,
                        verdict="missing" if cell in bg else "new")
             rows.append(row)
             continue
         b = bg[cell].set_index("seed")
         c = cg[cell].set_index("seed")
         seeds = b.index.intersection(c.index)
+        unpaired = len(b.index.union(c.index)) - len(seeds)
         b, c = b.loc[seeds], c.loc[seeds]
         b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
         newly_diverged = bool((b_ok & ~c_ok).any())
@@ -178,9 +184,9 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         else:
             verdict = "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
-                   ci_low=lo, ci_high=hi, n=int(both.sum()), verdict=verdict)
+                   ci_low=lo, ci_high=hi, n=int(both.sum()), unpaired=unpaired, verdict=verdict)
         rows.append(row)
-    out = pd.DataFrame(rows, columns=keys + ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "verdict"])
+    out = pd.DataFrame(rows, columns=keys + COLUMNS)
     out["_sev"] = out["verdict"].map(SEVERITY)
     out["_mag"] = -out["rel_change"].abs().fillna(0)
     return out.sort_values(["_sev", "_mag"] + keys).drop(columns=["_sev", "_mag"]).reset_index(drop=True)
@@ -213,8 +219,8 @@ def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str]
         rows.append({"experiment": key[0], "scenario": "–", "variant": "–", "signal": key[1], "metric": "claim",
                      "baseline": np.nan if b is None else float(b), "candidate": np.nan if c is None else float(c),
                      "change": np.nan, "rel_change": np.nan, "ci_low": np.nan, "ci_high": np.nan, "n": 0,
-                     "verdict": verdict})
-    return pd.DataFrame(rows, columns=KEYS + ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "verdict"])
+                     "unpaired": 0, "verdict": verdict})
+    return pd.DataFrame(rows, columns=KEYS + COLUMNS)
 
 
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
@@ -311,5 +317,10 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         counts = rest["verdict"].value_counts()
         what = " and ".join(f"{counts[v]} {v}" for v in QUIET if counts.get(v, 0))
         lines += ["", f"{what} cell(s) not listed (`--all` lists every cell)."]
+    unpaired = table[table["unpaired"] > 0]
+    if len(unpaired):  # e.g. a candidate run with more (or fewer) seeds than the baseline
+        note = (f"{len(unpaired)} cell(s) have seeds that only one side ran (up to {unpaired['unpaired'].max()} per "
+                "cell): they are left out, each cell is compared on the seeds both ran (`seeds`).")
+        lines += ["", note]
     return "\n".join(lines) + "\n"
 
