@@ -149,4 +149,4 @@ def test_run_writes_claims_and_require_claims_gates(tmp_path):
     html = (tmp_path / "r.html").read_text()
     assert report.exit_code == 0 and "Claims checked: tiny" in html and "<b>fails</b> | cannot hold" not in html
     assert "<td><b>fails</b></td><td>cannot hold</td>" in html
-    assert "<tr><td>tiny</td><td>1 of 2</td><td>cannot hold</td></tr>" in html  # the overview at the top
+    assert "<tr><td>tiny</td><td>1\u00a0of\u00a02</td><td>cannot hold</td></tr>" in html  # the overview (no wrap)
