@@ -7,6 +7,7 @@ Exit codes: 0 success, 1 failure of a check (``compare``; ``--require-claims``),
 from __future__ import annotations
 
 import json
+import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -52,10 +53,20 @@ def fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
-def _interrupted(what: str) -> None:
-    """Ctrl-C: say in one line what was kept and how to go on, exit 130 (typer would exit 130 silently)."""
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a cancelled CI job, ``timeout``, ``kill``), raised by :func:`main`'s handler so that the command
+    unwinds as on Ctrl-C: folders stay whole, the worker processes stop, the same line says what was kept."""
+
+
+def _terminated(signum, frame) -> None:
+    raise Terminated
+
+
+def _interrupted(what: str, exc: KeyboardInterrupt) -> None:
+    """Ctrl-C or SIGTERM: say in one line what was kept and how to go on; exit 130 or 143 as the shell would
+    (typer exits 130 silently)."""
     err.print(f"interrupted: {what}", markup=False)
-    raise typer.Exit(130)
+    raise typer.Exit(128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT))
 
 
 @contextmanager
@@ -168,9 +179,9 @@ def run(
     jobs = min(jobs or available_cores(), max(1, len(loaded)))
     try:
         failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _interrupted("the experiments already written are complete, the others untouched; the same command with "
-                     "--resume runs only those not written")
+                     "--resume runs only those not written", exc)
     if require_claims and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
@@ -383,10 +394,10 @@ def sweep(
                                                on_start=lambda k: bar.update(task, total=k), pool=pool)
             wall = _time.perf_counter() - t_sim
             bar.update(task, completed=bar.tasks[0].total)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         kept = len(list(partial_dir(target).glob("chunk-*.csv")))
         _interrupted(f"{kept} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
-                     "the same command resumes from them")
+                     "the same command resumes from them", exc)
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
@@ -565,7 +576,9 @@ _USAGE_ERROR, _CLICK_EXCEPTION = (next(c for c in typer.BadParameter.__mro__ if 
 
 def main(args: list[str] | None = None) -> None:
     """Console entry point: ``app``, except that a bad option or argument (a usage error, which typer draws as
-    a boxed panel with the usage) is one line naming it, like every other input error, exit code 2."""
+    a boxed panel with the usage) is one line naming it, like every other input error, exit code 2; and SIGTERM
+    is handled as Ctrl-C (:class:`Terminated`)."""
+    signal.signal(signal.SIGTERM, _terminated)
     try:
         code = app(args=args, prog_name="marinebench", standalone_mode=False)
     except _USAGE_ERROR as exc:

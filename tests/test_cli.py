@@ -239,18 +239,37 @@ def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp
     assert (tmp_path / "a" / name / "metrics.csv").read_text() == (tmp_path / "b" / name / "metrics.csv").read_text()
 
 
-def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch):
+@pytest.mark.parametrize("stop, code", [(KeyboardInterrupt, 130), ("terminated", 143)])
+def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch, stop, code):
+    """Ctrl-C, or SIGTERM, which the console entry point turns into cli.Terminated: one line, 130 or 143."""
     from marinebench import cli
 
-    def ctrl_c(*args, **kwargs):
-        raise KeyboardInterrupt
+    def interrupt(*args, **kwargs):
+        raise cli.Terminated if stop == "terminated" else stop
 
-    monkeypatch.setattr(cli, "_run_and_write", ctrl_c)
+    monkeypatch.setattr(cli, "_run_and_write", interrupt)
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "o"), "--jobs", "1", "--quiet"])
-    assert res.exit_code == 130 and res.output.strip() == (
+    assert res.exit_code == code and res.output.strip() == (
         "interrupted: the experiments already written are complete, the others untouched; the same command with "
         "--resume runs only those not written")
     assert list((tmp_path / "o").iterdir()) == []
+
+
+def test_the_entry_point_turns_sigterm_into_an_interruption(monkeypatch):
+    """A cancelled CI job or ``timeout`` sends SIGTERM: main() installs a handler that raises cli.Terminated (a
+    KeyboardInterrupt), so the command unwinds as on Ctrl-C instead of dying mid-write."""
+    import signal
+
+    from marinebench import cli
+
+    monkeypatch.setattr(signal, "signal", lambda signum, handler: installed.update({signum: handler}))
+    installed = {}
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert installed == {signal.SIGTERM: cli._terminated}
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        cli._terminated(signal.SIGTERM, None)
+    assert isinstance(stopped.value, cli.Terminated)
 
 
 def test_bad_set_names_the_option(tiny_config, tmp_path):

@@ -57,6 +57,7 @@ def _init_worker(counter) -> None:
     global _steps
     _steps = counter
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent stops us
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the CLI's handler (forked): the parent's terminate() ends us
     # One BLAS thread per worker, as Dask's and joblib's workers have: the workers fill the cores already, and
     # BLAS threads that outnumber the cores spin-wait against each other.
     threadpool_limits(1)
