@@ -339,6 +339,7 @@ def sweep(
         GRID_N,
         chunks_of,
         discard_partial,
+        finished_chunks,
         partial_dir,
         run_chunked,
         sweep_experiment,
@@ -395,8 +396,7 @@ def sweep(
             wall = _time.perf_counter() - t_sim
             bar.update(task, completed=bar.tasks[0].total)
     except KeyboardInterrupt as exc:
-        kept = len(list(partial_dir(target).glob("chunk-*.csv")))
-        _interrupted(f"{kept} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
+        _interrupted(f"{finished_chunks(target)} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
                      "the same command resumes from them", exc)
     try:
         claims, mapped = write_sweep(

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import copy
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -305,6 +307,16 @@ def preflight(exp: Experiment, file: Path) -> None:
         _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
 
 
+@contextmanager
+def _user_code(file: Path, key: str) -> Iterator[None]:
+    """Run a custom class's own code at validation: whatever it raises (a constructor refusing its params, a
+    member failing or returning the wrong thing) becomes one config error at ``key``."""
+    try:
+        yield
+    except Exception as exc:  # noqa: BLE001 - the class's code: any exception is the user's to fix
+        raise ConfigError(file, key, f"{type(exc).__name__}: {exc}") from None
+
+
 def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     from marinebench.errors import DesignError, StiffnessError
     from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of, wants_lumped
@@ -323,14 +335,10 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
         if closed_loop:
             if v.controller.kind == "custom":
-                try:
+                with _user_code(file, f"variants.{i}.controller.params"):  # its constructor refusing its params
                     built = v.controller.build(1)
-                except Exception as exc:  # noqa: BLE001 - a custom controller's constructor refusing its params
-                    raise ConfigError(file, f"variants.{i}.controller.params", f"{type(exc).__name__}: {exc}") from None
-                try:
+                with _user_code(file, f"variants.{i}.controller.source"):
                     check_controller(built, exp.scenario.control_period)
-                except Exception as exc:  # noqa: BLE001 - the class's own code failing or returning the wrong thing
-                    raise ConfigError(file, f"variants.{i}.controller.source", f"{type(exc).__name__}: {exc}") from None
             continue
         if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
             raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
@@ -347,10 +355,8 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
                 raise
             raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
         if v.observer.kind == "custom":
-            try:
+            with _user_code(file, f"variants.{i}.observer.source"):
                 check_observer(groups[-1].observer, 1)
-            except Exception as exc:  # noqa: BLE001 - the class's own code failing or returning the wrong thing
-                raise ConfigError(file, f"variants.{i}.observer.source", f"{type(exc).__name__}: {exc}") from None
     from marinebench.rov_scenario import ROV_SIGNALS
 
     if closed_loop:

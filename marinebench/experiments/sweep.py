@@ -407,7 +407,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
     chunks = chunks_of(exp, chunk_size)
-    paths = [partial / f"chunk-{c:04d}.csv" for c in range(len(chunks))]
+    paths = [partial / CHUNK_FILE.format(c) for c in range(len(chunks))]
     n_steps = steps(exp)
     if on_start is not None:
         on_start(n_steps * len(chunks))
@@ -430,9 +430,17 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     return pd.concat([pd.read_csv(path) for path in paths], ignore_index=True), wall, len(pending)
 
 
+CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)
+
+
 def partial_dir(target: Path) -> Path:
     """Where :func:`run_chunked` keeps the finished chunks of the sweep that writes ``target``."""
     return target.parent / f".{target.name}.partial"
+
+
+def finished_chunks(target: Path) -> int:
+    """How many chunks of the sweep that writes ``target`` are finished and kept (an interrupted sweep)."""
+    return len(list(partial_dir(target).glob(CHUNK_FILE.replace("{:04d}", "*"))))
 
 
 def discard_partial(target: Path) -> None:
