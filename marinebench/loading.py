@@ -22,6 +22,7 @@ from pydantic import ValidationError
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
 from marinebench.controllers.spec import check_built as check_controller
 from marinebench.errors import ConfigError
+from marinebench.keypaths import key_path, unknown_key_hint
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import resolve_source, split_source
@@ -239,21 +240,18 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     return doc, origins
 
 
-def _loc(loc: tuple) -> str:
-    # drop pydantic's discriminator tags (e.g. 'bejarano' inside observer unions)
-    tags = {"bejarano", "liu_eso", "npo", "resetting_fto", "random_sinusoid", "constant", "none", "bandlimited_uniform",
-            "open_loop_asv", "dp_supply", "rov_tracking", "supply_dp_linear", "supply_shipx_lf", "cdo", "eo", "custom", "impulse", "slow", "std", "rmse", "max_abs", "j_tot", "int", "recovery"}
-    return ".".join(str(p) for p in loc if not (isinstance(p, str) and p in tags))
-
-
-def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -> ConfigError:
-    err = exc.errors()[0]
-    key = _loc(err["loc"])
+def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], root: Any = Experiment) -> ConfigError:
+    """pydantic's first error as one line naming the file the key came from (the experiment, a scenario file, an
+    override or a ``--set``) and the key as written in YAML (:func:`keypaths.key_path`); an unknown key gets the
+    near misses among the keys allowed there, and the keys of any further errors are named."""
+    errors = exc.errors()
+    err = errors[0]
+    unknown = err["type"] == "extra_forbidden"
+    key, allowed = key_path(root, err["loc"], unknown)
     file = origins[""]
     for origin in sorted(o for o in origins if o.startswith("scenario")):  # the scenario file the key lives in
         if key == origin or key.startswith(origin + "."):
             file = origins[origin]
-    unknown = err["type"] == "extra_forbidden"
     for origin, source in origins.items():
         for tag in ("override ", "--set "):
             if not origin.startswith(tag):
@@ -264,14 +262,17 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path]) -
                 file = source
     msg = err["msg"].removeprefix("Value error, ")
     if unknown:
-        msg = "unknown key"
+        msg = "unknown key" + unknown_key_hint(key, allowed)
     elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
         msg += " (YAML reads an unquoted true, false, yes, no, on or off as a boolean: quote the word)"
     where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
     if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'
         key, msg = where.groups()
-    more = len(exc.errors()) - 1
-    return ConfigError(file, key or "(top level)", msg + (f" (and {more} more)" if more else ""))
+    others = list(dict.fromkeys(key_path(root, e["loc"])[0] or "(top level)" for e in errors[1:]))
+    if others:
+        shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
+        msg += f" (and {len(errors) - 1} more: {shown})"
+    return ConfigError(file, key or "(top level)", msg)
 
 
 def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
@@ -404,7 +405,7 @@ def load_scenario(path: str | Path):
     try:
         return TypeAdapter(AnyScenario).validate_python(doc)
     except ValidationError as exc:
-        raise validation_to_config_error(exc, {"": path}) from None
+        raise validation_to_config_error(exc, {"": path}, AnyScenario) from None
 
 
 def is_scenario_file(path: Path, _depth: int = 0) -> bool:

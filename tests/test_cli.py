@@ -79,7 +79,13 @@ def edit(path: Path, tmp_path: Path, name: str, fn) -> Path:
 
 
 BAD = {
-    "unknown_key": (lambda d: d.update(bogus=1), "bogus: unknown key"),
+    "unknown_key": (lambda d: d.update(bogus=1), "bogus: unknown key (allowed here: assumptions, claims, description,"),
+    # a near miss of an observer's key; the discriminated union's tag ('bejarano') is not part of the key
+    "misspelt_key": (lambda d: d["variants"][1]["observer"].update(delta_p=1.0),
+                     "variants.1.observer.delta_p: unknown key (did you mean delta_p1 or delta_psi1?)"),
+    # every further error is named by its key, the claim's kind ('less') is not
+    "two_errors": (lambda d: d.update(claims=[{"kind": "less", "a": "x", "b": "y", "signalz": ["u"]}], bogus=1),
+                   "claims.0.text: Field required (and 2 more: claims.0.signalz, bogus)"),
     "wrong_type": (lambda d: d["variants"][0]["observer"].update(eps="fast"), "variants.0.observer.eps"),
     "out_of_range": (lambda d: d["scenario"].update(dt=-0.01), "scenario.dt: Input should be greater than 0"),
     "missing_scenario": (lambda d: d["scenario"].update({"from": "nowhere.yaml"}), "scenario: scenario file not found"),
@@ -280,7 +286,8 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "seeds"])
     assert res.exit_code == 2 and "expected dotted.key=value" in res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "engine.nosuch.deeper=1"])  # a new key, and its parent
-    assert res.exit_code == 2 and res.output.strip() == "error: --set: engine.nosuch: unknown key"
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: engine.nosuch: unknown key "
+                                                        "(allowed here: check_step, stiffness_limit, trace_dt)")
 
 
 def test_validate_all_committed_configs_and_scenarios():
@@ -392,7 +399,7 @@ def test_a_bad_key_is_named_in_the_file_of_the_from_chain_that_holds_it(tiny_con
     middle.write_text(yaml.safe_dump({"from": tiny_config.name, "bogus": 1}))
     derived.write_text(yaml.safe_dump({"from": "middle.yaml", "seeds": 3}))
     res = runner.invoke(app, ["validate", str(derived)])
-    assert res.exit_code == 2 and res.output.strip() == f"error: {middle}: bogus: unknown key", res.output
+    assert res.exit_code == 2 and res.output.startswith(f"error: {middle}: bogus: unknown key (allowed here: "), res.output
 
 
 def test_two_configs_that_would_write_one_folder_are_refused(tiny_config, tmp_path):

@@ -1,0 +1,94 @@
+"""Key paths of config errors: pydantic's error location read against the config's types, so that an error names
+the dotted key a user writes in YAML, and an unknown key comes with the keys allowed where it was found.
+
+pydantic's locations carry more than the keys: a discriminated union adds the member's tag
+(``variants.0.observer.bejarano.delta``), a plain union the member's type (``k.list[float].0``). Both are
+dropped here by walking the location through the type annotations (models, lists, dicts, unions) from the root
+type, instead of matching a list of known tags, so a new kind needs no change here.
+"""
+
+from __future__ import annotations
+
+import difflib
+import types
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
+
+from pydantic import BaseModel, Tag
+from pydantic.fields import FieldInfo
+
+
+def _members(tp: Any, discriminator: str = "kind") -> list[tuple[Any, set[str]]]:
+    """The alternatives of a (possibly annotated, optional or union) type, each with the tags that select it: a
+    ``Tag`` around it, or the values of its ``Literal`` discriminator field (``kind``)."""
+    tags: set[str] = set()
+    while get_origin(tp) is Annotated:
+        tp, *meta = get_args(tp)
+        tags |= {m.tag for m in meta if isinstance(m, Tag)}
+        discriminator = next((m.discriminator for m in meta if isinstance(m, FieldInfo) and isinstance(m.discriminator, str)),
+                             discriminator)
+    if get_origin(tp) in (Union, types.UnionType):
+        return [(m, t | tags) for alt in get_args(tp) for m, t in _members(alt, discriminator)]
+    if _is_model(tp) and discriminator in tp.model_fields:
+        kind = tp.model_fields[discriminator].annotation
+        if get_origin(kind) is Literal:
+            tags |= {str(v) for v in get_args(kind)}
+    return [(tp, tags)]
+
+
+def _is_model(tp: Any) -> bool:
+    return isinstance(tp, type) and issubclass(tp, BaseModel)
+
+
+def _inner(tp: Any, index: int) -> Any:
+    args = get_args(tp)
+    return args[index] if len(args) > index else Any
+
+
+def key_path(root: Any, loc: tuple, unknown: bool = False) -> tuple[str, list[str]]:
+    """The dotted key of pydantic location ``loc`` under type ``root``, and, when ``unknown`` (an extra key), the
+    keys allowed beside it."""
+    parts: list[str] = []
+    tp = root
+    for i, p in enumerate(loc):
+        members = _members(tp)
+        models = [m for m, _ in members if _is_model(m)]
+        if isinstance(p, int):
+            seqs = [m for m, _ in members if get_origin(m) in (list, tuple)]
+            tp = _inner(seqs[0], 0) if seqs else Any
+            parts.append(str(p))
+            continue
+        tagged = [m for m, tags in members if p in tags]
+        if tagged and len(members) > 1:  # a discriminated union's member, named by its tag: not a key in the YAML
+            tp = tagged[0]
+            continue
+        holders = [m for m in models if p in m.model_fields]
+        if holders:
+            tp = holders[0].model_fields[p].annotation
+            parts.append(p)
+            continue
+        dicts = [m for m, _ in members if get_origin(m) is dict]
+        if dicts:
+            tp = _inner(dicts[0], 1)
+            parts.append(p)
+            continue
+        if unknown and i == len(loc) - 1:
+            parts.append(p)
+            return ".".join(parts), sorted({f for m in models for f in m.model_fields})
+        if tp is not Any and len(members) > 1:  # a plain union's member named by its type, e.g. 'list[float]'
+            tp = Any
+            continue
+        parts.append(str(p))
+    return ".".join(parts), []
+
+
+def unknown_key_hint(key: str, allowed: list[str], most: int = 12) -> str:
+    """' (did you mean delta_p1 or delta_psi1?)' for a near miss, else the allowed keys."""
+    name = key.rsplit(".", 1)[-1]
+    scores = {a: difflib.SequenceMatcher(None, name, a).ratio() for a in allowed}
+    near = sorted((a for a in allowed if scores[a] >= 0.6), key=lambda a: (-scores[a], a))[:3]  # ties by name
+    if near:
+        return f" (did you mean {' or '.join(near) if len(near) < 3 else ', '.join(near[:-1]) + ' or ' + near[-1]}?)"
+    if allowed:
+        shown = ", ".join(allowed[:most]) + (", …" if len(allowed) > most else "")
+        return f" (allowed here: {shown})"
+    return ""

@@ -1,0 +1,76 @@
+"""Config errors name the key as written in YAML: pydantic's location without union tags or member types."""
+
+from pathlib import Path
+
+import pytest
+from pydantic import ValidationError
+
+from marinebench.config import Experiment
+from marinebench.errors import ConfigError
+from marinebench.keypaths import key_path, unknown_key_hint
+from marinebench.loading import load_scenario, resolve_document
+
+
+def first_error(root, doc):
+    from pydantic import TypeAdapter
+
+    with pytest.raises(ValidationError) as exc:
+        TypeAdapter(root).validate_python(doc)
+    return exc.value.errors()[0]
+
+
+CONFIGS = Path(__file__).parent.parent / "configs"
+
+
+def experiment(**variant):
+    """A valid experiment document (Table IV's config, resolved) with one variant replaced."""
+    doc, _ = resolve_document(CONFIGS / "bejarano_table4.yaml")
+    doc["variants"] = [{"name": "a", "observer": {"kind": "liu_eso", "eps": 0.1}} | variant]
+    doc.pop("claims")
+    doc.pop("table")
+    return doc
+
+
+def test_discriminated_union_tags_are_dropped():
+    err = first_error(Experiment, experiment(observer={"kind": "bejarano", "delta": 1}))
+    assert err["loc"][:4] == ("variants", 0, "observer", "bejarano")  # what pydantic says
+    key, allowed = key_path(Experiment, err["loc"], unknown=True)
+    assert key == "variants.0.observer.delta"
+    assert {"delta_p1", "delta_psi1", "k_omega"} <= set(allowed) and "eps" not in allowed
+
+
+def test_a_plain_unions_member_type_is_dropped():
+    err = first_error(Experiment, experiment(controller={"kind": "srise", "output_scale": "x"}))
+    assert any("[" in str(p) or p == "float" for p in err["loc"])  # pydantic names the member it tried
+    assert key_path(Experiment, err["loc"])[0] == "variants.0.controller.output_scale"
+
+
+def test_claim_and_metric_kinds_are_dropped():
+    doc = experiment() | {"claims": [{"kind": "order", "signals": ["u"]}], "metrics": [{"kind": "std", "bogus": 1}]}
+    with pytest.raises(ValidationError) as exc:
+        Experiment.model_validate(doc)
+    keys = {key_path(Experiment, e["loc"], e["type"] == "extra_forbidden")[0] for e in exc.value.errors()}
+    assert "metrics.0.bogus" in keys and any(k.startswith("claims.0.") for k in keys)
+    assert not any(".order" in k or ".std" in k for k in keys), keys
+
+
+def test_dict_values_keep_their_key():
+    err = first_error(Experiment, experiment(world={"gnss_sigma": "x"}))
+    assert key_path(Experiment, err["loc"])[0] == "variants.0.world.gnss_sigma"
+
+
+def test_scenario_file_of_another_kind(tmp_path):
+    f = tmp_path / "dp.yaml"
+    f.write_text(f"from: {CONFIGS.parent / 'scenarios' / 'dp_impulse.yaml'}\nsensors: {{notch_wo: 1.0}}\n")
+    with pytest.raises(ConfigError) as exc:
+        load_scenario(f)
+    message = str(exc.value)
+    assert message.startswith(f"{f}: sensors.notch_wo: unknown key (did you mean ") and "notch_w0" in message, message
+
+
+def test_hint_lists_the_allowed_keys_without_a_near_miss():
+    assert unknown_key_hint("a.zzz", ["alpha", "beta"]) == " (allowed here: alpha, beta)"
+    assert unknown_key_hint("a.zzz", [f"k{i}" for i in range(20)], most=2) == " (allowed here: k0, k1, …)"
+    assert unknown_key_hint("a.alpah", ["alpha", "beta"]) == " (did you mean alpha?)"
+    assert unknown_key_hint("zzz", []) == ""
+    assert unknown_key_hint("notch_wo", ["notch", "notch_w0", "notch_wc"]) == " (did you mean notch_w0, notch_wc or notch?)"
