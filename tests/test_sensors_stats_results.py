@@ -107,6 +107,27 @@ def test_atomic_directory_falls_back_to_two_renames(tmp_path, monkeypatch):
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
 
+def test_a_killed_writers_temporary_folders_are_removed_by_the_next_write(tmp_path):
+    """SIGKILL (or a power cut) during a write leaves .exp.tmp-<host>-<pid>-* behind; the next write of the same
+    folder removes it when that process is gone, and leaves a live process's and another host's alone."""
+    import subprocess
+    import sys
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True,
+                          check=True).stdout.strip()
+    owner = writer._owner()
+    host = owner.rsplit("-", 1)[0]
+    orphans = [f".exp.tmp-{host}-{dead}-abc", f".exp.old-{host}-{dead}-abc"]
+    kept = [f".exp.tmp-{owner}-live", f".exp.tmp-otherhost-{dead}-abc", f".other.tmp-{host}-{dead}-x"]
+    for name in orphans + kept:
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "a.txt").write_text("half")
+    with atomic_directory(tmp_path / "exp") as d:
+        assert d.name.startswith(f".exp.tmp-{owner}-")
+        (d / "a.txt").write_text("new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["exp", *kept])
+
+
 def test_atomic_outputs_get_the_modes_the_umask_gives(tmp_path):
     """Not the 0700/0600 of mkdtemp/mkstemp: results on a shared machine are readable as any file would be."""
     import os

@@ -2,14 +2,18 @@
 
 An interrupted or failed run leaves the previous results untouched and no half-written directory. On Linux the
 swap is one system call (:func:`_exchange`); elsewhere the previous folder steps aside just before the rename.
+The temporary siblings are named after the host and process writing them, so that the next write of the same
+folder removes those a killed process (SIGKILL, a power cut) could not (:func:`_remove_orphans`).
 """
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import platform
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
@@ -48,7 +52,8 @@ def atomic_directory(target: Path) -> Iterator[Path]:
     """Yield a temporary directory that replaces ``target`` only if the block succeeds."""
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+    _remove_orphans(target)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-{_owner()}-", dir=target.parent))
     os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes 0700; results are for everyone the umask allows
     try:
         yield tmp
@@ -63,11 +68,37 @@ def atomic_directory(target: Path) -> Iterator[Path]:
         return
     old = None
     if target.exists():  # no atomic exchange here: the previous results step aside for a moment
-        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-{_owner()}-", dir=target.parent))
         os.replace(target, old / "x")
     os.replace(tmp, target)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _owner() -> str:
+    return f"{socket.gethostname().replace('-', '_')}-{os.getpid()}"
+
+
+def _remove_orphans(target: Path) -> None:
+    """Remove the temporary siblings of ``target`` (``.<name>.tmp-<host>-<pid>-*``, ``.<name>.old-...``) whose
+    writer, a process of this host, no longer exists. Those of other hosts (a shared file system) and of live
+    processes (a concurrent write) are left alone."""
+    host = socket.gethostname().replace("-", "_")
+    for kind in ("tmp", "old"):
+        for path in target.parent.glob(f".{glob.escape(target.name)}.{kind}-{host}-*-*"):
+            pid = path.name.removeprefix(f".{target.name}.{kind}-{host}-").split("-", 1)[0]
+            if pid.isdigit() and not _alive(int(pid)):
+                shutil.rmtree(path, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
 
 
 def _exchange(a: Path, b: Path) -> bool:
