@@ -12,7 +12,7 @@ import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
-from marinebench.results.compare import Tolerance, compare_frames, paired_bootstrap_ci
+from marinebench.results.compare import Tolerance, compare_frames, paired_bootstrap_ci, relative_change_ci
 
 runner = CliRunner()
 
@@ -52,9 +52,9 @@ def test_planted_regression_is_caught_and_listed_first(tmp_path, base_values):
     assert lines[0] == "### marinebench compare: 1 worse, 0 better, 3 same"
     first = lines[4]
     assert "WORSE" in first and "| b | v |" in first
-    # the interval is in the change column's unit (% of the baseline), around the planted +30 %
+    # the interval is in the change column's unit (% of the baseline): +30 % on every seed, so on every resample
     lo, hi = (float(x) for x in re.search(r"\| \+30\.0% \| \[\+([\d.]+)%, \+([\d.]+)%\] \|", first).groups())
-    assert 25 < lo < 30 < hi < 35
+    assert lo == hi == 30.0
 
 
 def test_seeds_run_on_one_side_only_are_left_out_and_said(tmp_path, base_values):
@@ -222,6 +222,31 @@ def test_bootstrap_ci_coverage_on_synthetic_data():
         lo, hi = paired_bootstrap_ci(d, n_boot=1000, seed=int(rng.integers(1 << 30)))
         hits += lo <= 0.5 <= hi
     assert 0.9 <= hits / 400 <= 0.98  # percentile bootstrap is slightly liberal at n = 20
+
+
+def test_the_ci_of_a_relative_change_is_one_of_ratios(tmp_path):
+    """Errors cut to a tenth on every seed, one seed's ten times the others': the change is −90 % on every
+    resample. Dividing the CI of the mean difference by the baseline's mean printed [−225 %, …], below −100 %
+    for an error that cannot go negative."""
+    base = np.array([1.0, 1.0, 10.0])
+    lo, _ = paired_bootstrap_ci(0.1 * base - base)
+    assert lo / base.mean() < -1.0  # what was printed before
+    assert relative_change_ci(base, 0.1 * base) == pytest.approx((-0.9, -0.9))
+    write_result(tmp_path / "a", "exp", {("a", "u"): base}, seeds=3)
+    write_result(tmp_path / "b", "exp", {("a", "u"): 0.1 * base}, seeds=3)
+    res = runner.invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "b")])
+    assert "| -90.0% | [-90.0%, -90.0%] | 3 |" in res.output, res.output
+
+
+def test_relative_ci_agrees_with_the_difference_on_zero():
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        b = rng.uniform(0.5, 2.0, 6)
+        c = b * rng.normal(1.0, 0.1, 6)
+        lo, hi = paired_bootstrap_ci(c - b, n_boot=400, seed=1)
+        rlo, rhi = relative_change_ci(b, c, n_boot=400, seed=1)
+        assert np.sign(lo) == np.sign(rlo) or min(abs(lo), abs(rlo)) < 1e-2
+        assert np.sign(hi) == np.sign(rhi) or min(abs(hi), abs(rhi)) < 1e-2
 
 
 def test_tolerance_decides_with_one_seed():

@@ -130,21 +130,45 @@ def check_compatible(base: dict[str, Path], cand: dict[str, Path]) -> None:
             )
 
 
+def _resamples(n: int, n_boot: int, seed: int) -> np.ndarray:
+    """``(n_boot, n)`` seed indices drawn with replacement: the pairs resampled together."""
+    return np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+
+
 def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 2000, seed: int = 0) -> tuple[float, float]:
     """Percentile bootstrap CI of the mean of paired differences (resampling seeds)."""
     diff = np.asarray(diff, dtype=float)
     if diff.size < 2:
         return float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, diff.size, size=(n_boot, diff.size))
-    means = diff[idx].mean(axis=1)
+    means = diff[_resamples(diff.size, n_boot, seed)].mean(axis=1)
     alpha = (1 - level) / 2
     return float(np.quantile(means, alpha)), float(np.quantile(means, 1 - alpha))
 
 
-COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "n", "unpaired", "verdict"]
-"""After the cell's keys: the means over the paired seeds, change, its CI, ``n`` pairs, ``unpaired`` seeds that
-only one side ran (left out of the pairing), verdict."""
+def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
+                       seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of the relative change of the means, ``mean(cand) / mean(base) − 1``, resampling the
+    pairs (the same draws as :func:`paired_bootstrap_ci`, so the same share of them is below zero when the
+    baseline is positive; the verdict stays with that one). For an error metric it stays above −100 %, where the CI of the difference
+    divided by the baseline's mean need not: a resample that repeats the seed with the largest error changes
+    the difference more than the mean."""
+    base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
+    if base.size < 2:
+        return float("nan"), float("nan")
+    idx = _resamples(base.size, n_boot, seed)
+    mb, mc = base[idx].mean(axis=1), cand[idx].mean(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = (mc - mb) / np.abs(mb)
+    if not np.isfinite(rel).all():
+        return float("nan"), float("nan")
+    alpha = (1 - level) / 2
+    return float(np.quantile(rel, alpha)), float(np.quantile(rel, 1 - alpha))
+
+
+COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "rel_ci_low", "rel_ci_high", "n",
+           "unpaired", "verdict"]
+"""After the cell's keys: the means over the paired seeds, change, its CI, the relative change and its CI, ``n``
+pairs, ``unpaired`` seeds that only one side ran (left out of the pairing), verdict."""
 
 
 def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS) -> pd.DataFrame:
@@ -158,7 +182,8 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
             g = bg.get(cell, cg.get(cell))
             ok = g[g["status"] == "ok"]["value"]
             row.update(baseline=ok.mean() if cell in bg else np.nan, candidate=ok.mean() if cell in cg else np.nan,
-                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, n=0, unpaired=0,
+                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, rel_ci_low=np.nan,
+                       rel_ci_high=np.nan, n=0, unpaired=0,
                        verdict="missing" if cell in bg else "new")
             rows.append(row)
             continue
@@ -174,6 +199,7 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         bm, cm = float(b["value"][both].mean()), float(c["value"][both].mean())
         change = cm - bm
         lo, hi = paired_bootstrap_ci(d, tol.level, tol.n_boot)
+        rel_lo, rel_hi = relative_change_ci(b["value"][both].to_numpy(), c["value"][both].to_numpy(), tol.level, tol.n_boot)
         sign = -1.0 if row["metric"] in HIGHER_IS_BETTER else 1.0
         within = abs(change) <= tol.atol + tol.rtol * abs(bm)
         significant = d.size < 2 or not (lo <= 0.0 <= hi)
@@ -184,7 +210,8 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         else:
             verdict = "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
-                   ci_low=lo, ci_high=hi, n=int(both.sum()), unpaired=unpaired, verdict=verdict)
+                   ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=int(both.sum()), unpaired=unpaired,
+                   verdict=verdict)
         rows.append(row)
     out = pd.DataFrame(rows, columns=keys + COLUMNS)
     out["_sev"] = out["verdict"].map(SEVERITY)
@@ -306,8 +333,8 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
         if np.isnan(r.ci_low):
             ci = "–"
-        elif r.baseline:  # in the units of the change column: % of the baseline
-            ci = f"[{r.ci_low / abs(r.baseline):+.1%}, {r.ci_high / abs(r.baseline):+.1%}]"
+        elif not np.isnan(r.rel_ci_low):  # in the units of the change column
+            ci = f"[{r.rel_ci_low:+.1%}, {r.rel_ci_high:+.1%}]"
         else:
             ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
         lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
