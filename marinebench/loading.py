@@ -102,8 +102,9 @@ def _split_path(key: str) -> list[str | tuple[str]]:
     return parts
 
 
-def apply_set(doc: dict, assignment: str) -> None:
-    """Apply one ``dotted.key=value`` override in place (value parsed as YAML)."""
+def apply_set(doc: dict, assignment: str) -> str:
+    """Apply one ``dotted.key=value`` override in place (value parsed as YAML); returns the key it set as the dotted
+    path of the document, a ``[name]`` selector replaced by the item's index (``variants.0.observer.eps``)."""
     if "=" not in assignment:
         raise ConfigError("--set", assignment, "expected dotted.key=value")
     key, raw = assignment.split("=", 1)
@@ -113,6 +114,7 @@ def apply_set(doc: dict, assignment: str) -> None:
     except (yaml.YAMLError, ValueError) as exc:
         raise ConfigError("--set", key, str(exc).splitlines()[0]) from None
     node: Any = doc
+    where: list[str] = []
     for i, part in enumerate(parts):
         last = i == len(parts) - 1
         if isinstance(part, tuple):  # [name] selector in a list of named items
@@ -130,12 +132,14 @@ def apply_set(doc: dict, assignment: str) -> None:
             idx = part
         else:
             raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
+        where.append(str(idx))
         if last:
             node[idx] = value
         else:
             if isinstance(node, dict) and idx not in node:
                 node[idx] = {}
             node = node[idx]
+    return ".".join(where)
 
 
 def shown_path(path: Path) -> Path:
@@ -233,10 +237,13 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
         profiles = doc.get("profiles") or {}
         if profile not in profiles:
             raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
-        sets = list(profiles[profile]) + list(sets)
+        for i, s in enumerate(profiles[profile]):  # written in the config file: errors name it
+            try:
+                origins["override " + apply_set(doc, s)] = path
+            except ConfigError as exc:
+                raise ConfigError(path, f"profiles.{profile}.{i}", f"{exc.key}: {exc.message}") from None
     for s in sets:
-        apply_set(doc, s)
-        origins["--set " + s.split("=", 1)[0].strip()] = Path("--set")
+        origins["--set " + apply_set(doc, s)] = Path("--set")
     return doc, origins
 
 

@@ -118,6 +118,18 @@ def test_bad_config_one_line_exit_2_nothing_written(case, tiny_config, tmp_path)
     assert not out.exists()  # the valid first config was not run either
 
 
+def test_a_bad_profile_entry_names_the_config_file(tiny_config, tmp_path):
+    """A profile's settings are written in the config: their errors name it and the profile, not --set."""
+    doc = yaml.safe_load(tiny_config.read_text())
+    doc["profiles"] = {"short": ["scenario.horizon=-1"], "typo": ["variants[nope].observer.eps=1"]}
+    tiny_config.write_text(yaml.safe_dump(doc))
+    res = runner.invoke(app, ["run", str(tiny_config), "--profile", "short", "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2 and res.output.startswith(f"error: {tiny_config}: scenario.horizon: "), res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--profile", "typo", "--out", str(tmp_path / "out")])
+    assert not (tmp_path / "out").exists()
+    assert res.exit_code == 2 and res.output.strip() == f"error: {tiny_config}: profiles.typo.0: variants[nope].observer.eps: no item named 'nope'"
+
+
 def test_invalid_yaml(tmp_path):
     bad = tmp_path / "broken.yaml"
     bad.write_text("variants: [\n  name: x\n")
@@ -285,6 +297,8 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     assert res.exit_code == 2 and "no item named 'nope'" in res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "seeds"])
     assert res.exit_code == 2 and "expected dotted.key=value" in res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "variants[liu_eps0.2].observer.k=[3, 3]"])  # a named item
+    assert res.exit_code == 2 and res.output.startswith("error: --set: variants.0.observer.k"), res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "engine.nosuch.deeper=1"])  # a new key, and its parent
     assert res.exit_code == 2 and res.output.strip() == ("error: --set: engine.nosuch: unknown key "
                                                         "(allowed here: check_step, stiffness_limit, trace_dt)")

@@ -144,7 +144,7 @@ def test_atomic_outputs_get_the_modes_the_umask_gives(tmp_path):
 
 def test_apply_set_paths():
     doc = {"seeds": 1, "variants": [{"name": "a.b", "observer": {"eps": 1}}], "scenario": {"dt": 1}}
-    apply_set(doc, "variants[a.b].observer.eps=0.5")
+    assert apply_set(doc, "variants[a.b].observer.eps=0.5") == "variants.0.observer.eps"  # the key it set, by index
     apply_set(doc, "variants.0.name=c")
     apply_set(doc, "scenario.sensors.position_noise.kind=none")
     apply_set(doc, "seeds=3")
