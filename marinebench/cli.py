@@ -28,6 +28,7 @@ Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
 DEFAULT_SWEEP = Path("configs/torben_fig3.yaml")  # relative to the working directory, as results/ is
 SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help=f"experiment with a sweep section (default: {DEFAULT_SWEEP})")]
 Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")]
+ProfileName = Annotated[str | None, typer.Option("--profile", metavar="NAME", help="apply the config's named profile (e.g. quick)")]
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 out = Console(highlight=False, soft_wrap=True)
 
@@ -152,7 +153,7 @@ def run(
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed (overrides the config)")] = None,
     seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per variant")] = None,
     set_: Sets = None,
-    profile: Annotated[str | None, typer.Option(metavar="NAME", help="apply the config's named profile (e.g. quick)")] = None,
+    profile: ProfileName = None,
     jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="experiments run at once in separate processes "
                                       "(0, the default: one per core; 1: one after the other); the numbers do not depend on it")] = 0,
     quiet: Quiet = False,
@@ -531,16 +532,24 @@ def report(
 
 
 @app.command()
-def validate(files: Annotated[list[Path], typer.Argument(metavar="FILE", help="experiment or scenario YAML files")]) -> None:
-    """Check configs (and solve their observer designs) without running them."""
+def validate(
+    files: Annotated[list[Path], typer.Argument(metavar="FILE", help="experiment or scenario YAML files")],
+    set_: Sets = None,
+    profile: ProfileName = None,
+) -> None:
+    """Check configs (and solve their observer designs) without running them; with --set and --profile, as
+    ``run`` would load them."""
     from marinebench.loading import is_scenario_file, load_scenario
 
     for f in files:
         with one_line_errors():
             if is_scenario_file(f):
+                if set_ or profile:
+                    raise ConfigError("--set" if set_ else "--profile", "", f"{f}: a scenario file; --set and --profile "
+                                      "apply to experiment files (which can set scenario.<key>)")
                 load_scenario(f)
             else:
-                exp, _ = _load(f, [], None, None)
+                exp, _ = _load(f, set_ or [], None, None, profile)
                 for i, claim in enumerate(exp.claims):
                     if (problem := exp.claim_problem(claim)) is not None:
                         err.print(f"warning: {f}: claims.{i} cannot be checked: {problem}", markup=False)

@@ -311,6 +311,17 @@ def test_validate_all_committed_configs_and_scenarios():
     assert res.output.count(": ok") == len(files)
 
 
+def test_validate_takes_set_and_profile_as_run_does():
+    config = str(ROOT / "configs" / "torben_fig1.yaml")
+    assert runner.invoke(app, ["validate", config, "--profile", "quick", "--set", "seeds=2"]).exit_code == 0
+    res = runner.invoke(app, ["validate", config, "--set", "scenario.dt=-1"])
+    assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.dt: Input should be greater than 0")
+    res = runner.invoke(app, ["validate", config, "--profile", "nope"])
+    assert res.exit_code == 2 and "no profile 'nope' (have: quick)" in res.output, res.output
+    res = runner.invoke(app, ["validate", str(ROOT / "scenarios" / "dp_impulse.yaml"), "--set", "horizon=5"])
+    assert res.exit_code == 2 and "a scenario file; --set and --profile apply to experiment files" in res.output
+
+
 @pytest.mark.parametrize("kind, folder", [("experiment", "configs"), ("scenario", "scenarios")])
 def test_schema_accepts_every_committed_file_as_written_and_flags_typos(kind, folder):
     """The schema an editor uses must take the files as written (``from:``, scenario paths, partial overrides)
