@@ -160,8 +160,13 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
     if bpath in seen or bpath == path.resolve():
         raise ConfigError(path, "from", f"circular {what} reference to {ref}")
     if not bpath.exists():
-        raise ConfigError(path, "from", f"{what} file not found: {ref}")
+        raise ConfigError(path, "from", f"{what} file not found: {ref}{_looked_in(ref, bpath)}")
     return shown_path(bpath)  # errors in it then name it as the user would
+
+
+def _looked_in(ref: str, resolved: Path) -> str:
+    """' (looked for <path>)' where a relative reference resolves (against its file's folder) elsewhere than it reads."""
+    return "" if Path(ref).is_absolute() else f" (relative to the file's folder: looked for {resolved})"
 
 
 def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
@@ -183,7 +188,7 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
         raise ConfigError(path, f"{key}.from", "expected a file path")
     spath = (path.parent / ref).resolve()
     if not spath.exists():
-        raise ConfigError(path, key, f"scenario file not found: {ref}")
+        raise ConfigError(path, key, f"scenario file not found: {ref}{_looked_in(ref, spath)}")
     origins[key] = shown_path(spath)
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path

@@ -88,7 +88,9 @@ BAD = {
                    "claims.0.text: Field required (and 2 more: claims.0.signalz, bogus)"),
     "wrong_type": (lambda d: d["variants"][0]["observer"].update(eps="fast"), "variants.0.observer.eps"),
     "out_of_range": (lambda d: d["scenario"].update(dt=-0.01), "scenario.dt: Input should be greater than 0"),
-    "missing_scenario": (lambda d: d["scenario"].update({"from": "nowhere.yaml"}), "scenario: scenario file not found"),
+    # a relative path is read from the config's folder, which the message shows
+    "missing_scenario": (lambda d: d["scenario"].update({"from": "nowhere.yaml"}),
+                         "scenario: scenario file not found: nowhere.yaml (relative to the file's folder: looked for /"),
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
