@@ -165,7 +165,8 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
 
 
 def _looked_in(ref: str, resolved: Path) -> str:
-    """' (looked for <path>)' where a relative reference resolves (against its file's folder) elsewhere than it reads."""
+    """Where a relative reference was looked for: against the folder of the file that holds it, which is not the
+    working directory a user may read it from."""
     return "" if Path(ref).is_absolute() else f" (relative to the file's folder: looked for {resolved})"
 
 
