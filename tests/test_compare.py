@@ -173,11 +173,16 @@ def test_newly_diverged_run_is_worse(tmp_path, base_values):
 def test_unusable_inputs_exit_2(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "other", "exp", base_values, horizon=20.0)
+    for name in ("exp2", "exp3"):  # two more experiments with other worlds: named after the first
+        write_result(tmp_path / "base", name, base_values)
+        write_result(tmp_path / "other", name, base_values, horizon=20.0)
     (tmp_path / "empty").mkdir()
     cases = [
         ([str(tmp_path / "base"), str(tmp_path / "nope")], "no such directory"),
         ([str(tmp_path / "base"), str(tmp_path / "empty")], "no metrics.csv found"),
-        ([str(tmp_path / "base"), str(tmp_path / "other")], "mismatched configs for experiment 'exp'"),
+        ([str(tmp_path / "base"), str(tmp_path / "other")],
+         "mismatched configs for experiment 'exp' (" + str(tmp_path / "base" / "exp")),
+        ([str(tmp_path / "base"), str(tmp_path / "other")], "scenario.horizon; and for 2 more: exp2, exp3"),
         ([str(tmp_path / "base"), "--variants", "a", "zz"], "no variant 'zz'"),
         ([str(tmp_path / "base")], "missing CANDIDATE"),
     ]

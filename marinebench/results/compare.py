@@ -121,13 +121,22 @@ def _diff_keys(a, b, prefix: str = "") -> list[str]:
 
 
 def check_compatible(base: dict[str, Path], cand: dict[str, Path]) -> None:
+    """Refuse experiments whose worlds differ (scenario, root seed, metric windows): their seeds are not pairs.
+    One line: the first such experiment with the keys that differ, and the names of the others."""
+    mismatched = {}
     for name in sorted(set(base) & set(cand)):
         diff = _diff_keys(_world(base[name]), _world(cand[name]))
         if diff:
-            raise CompareInputError(
-                f"mismatched configs for experiment '{name}' ({base[name]} vs {cand[name]}): "
-                + ", ".join(diff[:5]) + (" ..." if len(diff) > 5 else "")
-            )
+            mismatched[name] = diff
+    if not mismatched:
+        return
+    name, diff = next(iter(mismatched.items()))
+    others = list(mismatched)[1:]
+    raise CompareInputError(
+        f"mismatched configs for experiment '{name}' ({base[name]} vs {cand[name]}): "
+        + ", ".join(diff[:5]) + (" ..." if len(diff) > 5 else "")
+        + (f"; and for {len(others)} more: {', '.join(others[:5])}{' ...' if len(others) > 5 else ''}" if others else "")
+    )
 
 
 def _resamples(n: int, n_boot: int, seed: int) -> np.ndarray:
