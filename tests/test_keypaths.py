@@ -1,5 +1,6 @@
 """Config errors name the key as written in YAML: pydantic's location without union tags or member types."""
 
+import copy
 from pathlib import Path
 
 import pytest
@@ -74,3 +75,52 @@ def test_hint_lists_the_allowed_keys_without_a_near_miss():
     assert unknown_key_hint("a.alpah", ["alpha", "beta"]) == " (did you mean alpha?)"
     assert unknown_key_hint("zzz", []) == ""
     assert unknown_key_hint("notch_wo", ["notch", "notch_w0", "notch_wc"]) == " (did you mean notch_w0, notch_wc or notch?)"
+
+
+def _leaves(node, prefix=()):
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _leaves(v, (*prefix, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _leaves(v, (*prefix, i))
+    elif prefix:
+        yield prefix
+
+
+def _resolves(node, parts) -> bool:
+    """``parts`` lead through ``node`` (a name with dots, e.g. the variant ``liu_eps0.2``, spans several parts)."""
+    if not parts:
+        return True
+    if isinstance(node, list):
+        return parts[0].isdigit() and int(parts[0]) < len(node) and _resolves(node[int(parts[0])], parts[1:])
+    if isinstance(node, dict):
+        return any(".".join(parts[:n]) in node and _resolves(node[".".join(parts[:n])], parts[n:])
+                   for n in range(1, len(parts) + 1))
+    return False
+
+
+@pytest.mark.parametrize("config", ["bejarano_table4", "tijjani_table3", "torben_fig3"])
+def test_every_bad_leaf_is_named_by_a_key_of_the_document(config):
+    """Each leaf of a committed config set to a wrong-typed value, or given an unknown key beside it: the error's
+    key is a path of the document as written (every part but a missing last one exists in it), so no tag or
+    member type of pydantic's location is left in it."""
+    from marinebench.loading import validation_to_config_error
+
+    doc, origins = resolve_document(CONFIGS / f"{config}.yaml")
+    checked = 0
+    for path in _leaves(doc):
+        for value in ("not-a-number", {"zzz_extra": 1}):
+            bad = copy.deepcopy(doc)
+            node = bad
+            for p in path[:-1]:
+                node = node[p]
+            node[path[-1]] = value
+            try:
+                Experiment.model_validate(bad)
+            except ValidationError as exc:
+                error = validation_to_config_error(exc, origins)
+                parts = error.key.split(".")
+                assert _resolves(bad, parts[:-1]), (path, value, str(error))
+                checked += 1
+    assert checked > 50
