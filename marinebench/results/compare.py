@@ -139,6 +139,11 @@ def check_compatible(base: dict[str, Path], cand: dict[str, Path]) -> None:
     )
 
 
+def _percentile_ci(stats: np.ndarray, level: float) -> tuple[float, float]:
+    alpha = (1 - level) / 2
+    return float(np.quantile(stats, alpha)), float(np.quantile(stats, 1 - alpha))
+
+
 def _resamples(n: int, n_boot: int, seed: int) -> np.ndarray:
     """``(n_boot, n)`` seed indices drawn with replacement: the pairs resampled together."""
     return np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
@@ -149,18 +154,16 @@ def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 200
     diff = np.asarray(diff, dtype=float)
     if diff.size < 2:
         return float("nan"), float("nan")
-    means = diff[_resamples(diff.size, n_boot, seed)].mean(axis=1)
-    alpha = (1 - level) / 2
-    return float(np.quantile(means, alpha)), float(np.quantile(means, 1 - alpha))
+    return _percentile_ci(diff[_resamples(diff.size, n_boot, seed)].mean(axis=1), level)
 
 
 def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
                        seed: int = 0) -> tuple[float, float]:
     """Percentile bootstrap CI of the relative change of the means, ``mean(cand) / mean(base) − 1``, resampling the
     pairs (the same draws as :func:`paired_bootstrap_ci`, so the same share of them is below zero when the
-    baseline is positive; the verdict stays with that one). For an error metric it stays above −100 %, where the CI of the difference
-    divided by the baseline's mean need not: a resample that repeats the seed with the largest error changes
-    the difference more than the mean."""
+    baseline is positive; the verdict stays with that one). For an error metric it stays above −100 %, where
+    the CI of the difference divided by the baseline's mean need not: a resample that repeats the seed with the
+    largest error changes the difference more than the mean."""
     base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
     if base.size < 2:
         return float("nan"), float("nan")
@@ -170,8 +173,7 @@ def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, 
         rel = (mc - mb) / np.abs(mb)
     if not np.isfinite(rel).all():
         return float("nan"), float("nan")
-    alpha = (1 - level) / 2
-    return float(np.quantile(rel, alpha)), float(np.quantile(rel, 1 - alpha))
+    return _percentile_ci(rel, level)
 
 
 COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "rel_ci_low", "rel_ci_high", "n",

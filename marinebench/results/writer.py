@@ -75,15 +75,19 @@ def atomic_directory(target: Path) -> Iterator[Path]:
         shutil.rmtree(old, ignore_errors=True)
 
 
+def _host() -> str:
+    return socket.gethostname().replace("-", "_")  # '-' separates the name's fields
+
+
 def _owner() -> str:
-    return f"{socket.gethostname().replace('-', '_')}-{os.getpid()}"
+    return f"{_host()}-{os.getpid()}"
 
 
 def _remove_orphans(target: Path) -> None:
     """Remove the temporary siblings of ``target`` (``.<name>.tmp-<host>-<pid>-*``, ``.<name>.old-...``) whose
     writer, a process of this host, no longer exists. Those of other hosts (a shared file system) and of live
     processes (a concurrent write) are left alone."""
-    host = socket.gethostname().replace("-", "_")
+    host = _host()
     for kind in ("tmp", "old"):
         for path in target.parent.glob(f".{glob.escape(target.name)}.{kind}-{host}-*-*"):
             pid = path.name.removeprefix(f".{target.name}.{kind}-{host}-").split("-", 1)[0]
@@ -96,8 +100,8 @@ def _alive(pid: int) -> bool:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except PermissionError:  # another user's process
-        return True
+    except PermissionError:  # another user's process: alive
+        pass
     return True
 
 
