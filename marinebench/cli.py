@@ -163,8 +163,7 @@ def run(
                                          "(manifest's inputs_key: resolved config, seeds, marinebench source, package "
                                          "versions, custom classes' files), e.g. after an interruption")] = False,
 ) -> None:
-    """Run experiments and write config.resolved.yaml, manifest.json, metrics.csv, table.md (claims.md),
-    figures/."""
+    """Run experiments; each writes config.resolved.yaml, manifest.json, metrics.csv, table.md, claims.md, figures/."""
     from marinebench.experiments.cluster import available_cores
     from marinebench.results.writer import writable_folder
 
@@ -484,6 +483,8 @@ def compare(
                                          "metric) also fails, as a worse cell does")] = False,
     all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
                                             "csv always hold every cell)")] = False,
+    unpaired: Annotated[bool, typer.Option(help="compare the two sides as independent samples (e.g. a candidate run "
+                                           "with another --seed): every run counts, wider CIs")] = False,
 ) -> None:
     """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse (or, with --strict,
     missing); 2: unusable input."""
@@ -496,15 +497,16 @@ def compare(
         if variants is not None:
             if candidate is not None:
                 fail("give either CANDIDATE or --variants A B, not both")
-            table = compare_variants(baseline, variants[0], variants[1], metric, tol)
+            table = compare_variants(baseline, variants[0], variants[1], metric, tol, paired=not unpaired)
         else:
             if candidate is None:
                 fail("missing CANDIDATE (or use --variants A B)")
-            table = compare_dirs(baseline, candidate, metric, tol)
+            table = compare_dirs(baseline, candidate, metric, tol, paired=not unpaired)
     if fmt is Format.md:
-        text = to_markdown(table, all_cells=all_cells)
+        text = to_markdown(table, all_cells=all_cells, paired=not unpaired)
     elif fmt is Format.json:
-        text = json.dumps({"summary": headline(table), "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
+        text = json.dumps({"summary": headline(table), "paired": not unpaired,
+                           "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
     else:
         text = table.to_csv(index=False)
     if output is not None:
@@ -537,8 +539,8 @@ def validate(
     set_: Sets = None,
     profile: ProfileName = None,
 ) -> None:
-    """Check configs (and solve their observer designs) without running them; with --set and --profile, as
-    ``run`` would load them."""
+    """Check configs (and solve their observer designs) without running them; with --set and --profile, as run
+    would load them."""
     from marinebench.loading import is_scenario_file, load_scenario
 
     for f in files:

@@ -12,13 +12,19 @@ import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
-from marinebench.results.compare import Tolerance, compare_frames, paired_bootstrap_ci, relative_change_ci
+from marinebench.results.compare import (
+    Tolerance,
+    compare_frames,
+    paired_bootstrap_ci,
+    relative_change_ci,
+    unpaired_bootstrap_ci,
+)
 
 runner = CliRunner()
 
 
 def write_result(root: Path, experiment: str, values: dict, seeds: int = 8, horizon: float = 10.0,
-                 status: dict | None = None) -> Path:
+                 status: dict | None = None, root_seed: int = 1) -> Path:
     """A synthetic result directory: values[(variant, signal)] -> per-seed array."""
     d = root / experiment
     d.mkdir(parents=True)
@@ -29,7 +35,8 @@ def write_result(root: Path, experiment: str, values: dict, seeds: int = 8, hori
             rows.append((experiment, "scen", variant, s, signal, "std", np.nan if st != "ok" else vals[s], st))
     pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"]) \
         .to_csv(d / "metrics.csv", index=False)
-    (d / "config.resolved.yaml").write_text(yaml.safe_dump({"scenario": {"horizon": horizon}, "seed": 1, "metrics": []}))
+    (d / "config.resolved.yaml").write_text(yaml.safe_dump({"scenario": {"horizon": horizon}, "seed": root_seed,
+                                                           "metrics": []}))
     return d
 
 
@@ -333,3 +340,61 @@ def test_report_names_a_table_that_is_not_utf8(tmp_path, base_values):
     res = runner.invoke(app, ["report", str(tmp_path / "res"), "--out", str(tmp_path / "r.html")])
     assert res.exit_code == 2 and res.output.strip() == f"error: {d / 'table.md'}: not UTF-8 text (byte 6)"
     assert not (tmp_path / "r.html").exists()
+
+
+def test_other_root_seeds_are_refused_paired_and_compared_unpaired(tmp_path):
+    """A candidate run on another root seed has other noise on every run: pairing its seed i with the baseline's
+    seed i would be meaningless, so the paired gate refuses it and says what compares it. Unpaired, every run
+    of each side counts (here 8 against 5), a planted +30 % is still caught, and noise alone is not."""
+    rng = np.random.default_rng(11)
+    base = {(v, s): 0.1 + 0.01 * rng.standard_normal(8) for v in ("a", "b") for s in ("u", "v")}
+    cand = {(v, s): 0.1 + 0.01 * rng.standard_normal(5) for v in ("a", "b") for s in ("u", "v")}
+    cand[("b", "v")] = 0.13 + 0.01 * rng.standard_normal(5)
+    write_result(tmp_path / "base", "exp", base, root_seed=2024)
+    write_result(tmp_path / "cand", "exp", cand, seeds=5, root_seed=7)
+    paired = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert paired.exit_code == 2 and len(paired.output.strip().splitlines()) == 1
+    assert ": seed (other root seeds are not pairs: --unpaired compares them as independent samples)" in paired.output
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--unpaired", "--all"])
+    assert res.exit_code == 1, res.output
+    lines = res.output.splitlines()
+    assert lines[0] == "### marinebench compare: 1 worse, 0 better, 3 same"
+    assert "| **WORSE** | exp | scen | b | v | std |" in lines[4] and lines[4].endswith("| 8/5 |")
+    assert "Unpaired: each side's runs are an independent sample" in res.output
+    # the other worlds' keys are still refused: only the root seed may differ
+    write_result(tmp_path / "other", "exp", cand, seeds=5, horizon=20.0, root_seed=7)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "other"), "--unpaired"])
+    assert res.exit_code == 2 and "scenario.horizon" in res.output and ": seed" not in res.output, res.output
+
+
+def test_unpaired_counts_a_larger_share_of_diverged_runs_as_worse(tmp_path, base_values):
+    write_result(tmp_path / "base", "exp", base_values, status={("a", "u", 0): "diverged"})
+    write_result(tmp_path / "same", "exp", base_values, status={("a", "u", 5): "diverged"}, root_seed=2)
+    write_result(tmp_path / "more", "exp", base_values, status={("a", "u", s): "diverged" for s in (1, 2)}, root_seed=3)
+    out = [runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / c), "--unpaired", "--format", "json"])
+           for c in ("same", "more")]
+    assert [r.exit_code for r in out] == [0, 1]
+    doc = json.loads(out[1].output)
+    assert doc["paired"] is False
+    worse = [c for c in doc["cells"] if c["verdict"] == "worse"]
+    assert [(c["variant"], c["signal"], c["n"], c["n_candidate"]) for c in worse] == [("a", "u", 7, 6)]
+
+
+def test_unpaired_bootstrap_ci_coverage_on_synthetic_data():
+    """Independent samples of different sizes: the interval holds the true difference of the means about as
+    often as its level says (the percentile bootstrap is somewhat liberal at these sizes)."""
+    rng = np.random.default_rng(4)
+    hits = 0
+    for _ in range(400):
+        b, c = rng.normal(1.0, 0.3, 12), rng.normal(1.2, 0.5, 20)
+        lo, hi = unpaired_bootstrap_ci(b, c, n_boot=1000, seed=int(rng.integers(1 << 30)))
+        hits += lo <= 0.2 <= hi
+    assert 0.88 <= hits / 400 <= 0.98
+    # a paired design would cancel shared noise; unpaired the interval must be wider on the same values
+    b = rng.normal(1.0, 0.3, 10)
+    c = b + 0.05 + 0.01 * rng.standard_normal(10)
+    p_lo, p_hi = paired_bootstrap_ci(c - b)
+    u_lo, u_hi = unpaired_bootstrap_ci(b, c)
+    assert p_lo > 0 and u_lo < 0 < u_hi and (u_hi - u_lo) > 5 * (p_hi - p_lo)
+    r_lo, r_hi = relative_change_ci(b, c, paired=False)
+    assert r_lo < 0 < r_hi

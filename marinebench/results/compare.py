@@ -12,6 +12,11 @@ change, and a verdict:
 A run that diverged in the candidate but not in the baseline is ``worse``, and so is a claim of the paper
 (``claims.md``, listed in the manifest) that held in the baseline and fails in the candidate. Two result sets with no cell
 in common are refused (:func:`require_pairs`): a gate that pairs nothing must not pass.
+
+*Unpaired* (``paired=False``, ``compare --unpaired``): the two sides are independent samples, e.g. a candidate
+run on another root seed to see whether a change holds on fresh noise. Every run of a cell counts, the CIs
+resample each side separately (wider than paired ones, which cancel the noise both sides share), and only the
+root seed may differ between the worlds.
 """
 
 from __future__ import annotations
@@ -120,22 +125,26 @@ def _diff_keys(a, b, prefix: str = "") -> list[str]:
     return [] if a == b else [prefix]
 
 
-def check_compatible(base: dict[str, Path], cand: dict[str, Path]) -> None:
+def check_compatible(base: dict[str, Path], cand: dict[str, Path], paired: bool = True) -> None:
     """Refuse experiments whose worlds differ (scenario, root seed, metric windows): their seeds are not pairs.
-    One line: the first such experiment with the keys that differ, and the names of the others."""
+    Unpaired, the root seed may differ (that is what the mode is for), the rest may not: other worlds are not
+    samples of the same thing. One line: the first such experiment with the keys that differ, the names of the
+    others, and, when the root seed is among the keys, the option that compares such runs."""
     mismatched = {}
     for name in sorted(set(base) & set(cand)):
-        diff = _diff_keys(_world(base[name]), _world(cand[name]))
+        diff = [k for k in _diff_keys(_world(base[name]), _world(cand[name])) if paired or k != "seed"]
         if diff:
             mismatched[name] = diff
     if not mismatched:
         return
     name, diff = next(iter(mismatched.items()))
     others = list(mismatched)[1:]
+    seeds_differ = any("seed" in d for d in mismatched.values())
     raise CompareInputError(
         f"mismatched configs for experiment '{name}' ({base[name]} vs {cand[name]}): "
         + ", ".join(diff[:5]) + (" ..." if len(diff) > 5 else "")
         + (f"; and for {len(others)} more: {', '.join(others[:5])}{' ...' if len(others) > 5 else ''}" if others else "")
+        + (" (other root seeds are not pairs: --unpaired compares them as independent samples)" if seeds_differ else "")
     )
 
 
@@ -157,18 +166,38 @@ def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 200
     return _percentile_ci(diff[_resamples(diff.size, n_boot, seed)].mean(axis=1), level)
 
 
+def _resampled_means(base: np.ndarray, cand: np.ndarray, n_boot: int, seed: int,
+                     paired: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(n_boot,)`` bootstrap means of each side: paired, the same seed indices on both sides (the draws of
+    :func:`paired_bootstrap_ci`); unpaired, each side resampled on its own."""
+    ib = _resamples(base.size, n_boot, seed)
+    ic = ib if paired else _resamples(cand.size, n_boot, seed + 1)
+    return base[ib].mean(axis=1), cand[ic].mean(axis=1)
+
+
+def unpaired_bootstrap_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
+                          seed: int = 0) -> tuple[float, float]:
+    """Percentile bootstrap CI of ``mean(cand) − mean(base)`` for independent samples (each side resampled on
+    its own; the sizes may differ)."""
+    base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
+    if min(base.size, cand.size) < 2:
+        return float("nan"), float("nan")
+    mb, mc = _resampled_means(base, cand, n_boot, seed, paired=False)
+    return _percentile_ci(mc - mb, level)
+
+
 def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
-                       seed: int = 0) -> tuple[float, float]:
+                       seed: int = 0, paired: bool = True) -> tuple[float, float]:
     """Percentile bootstrap CI of the relative change of the means, ``mean(cand) / mean(base) − 1``, resampling the
     pairs (the same draws as :func:`paired_bootstrap_ci`, so the same share of them is below zero when the
-    baseline is positive; the verdict stays with that one). For an error metric it stays above −100 %, where
+    baseline is positive; the verdict stays with that one), or, unpaired, each side on its own (the draws of
+    :func:`unpaired_bootstrap_ci`). For an error metric it stays above −100 %, where
     the CI of the difference divided by the baseline's mean need not: a resample that repeats the seed with the
     largest error changes the difference more than the mean."""
     base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
-    if base.size < 2:
+    if min(base.size, cand.size) < 2:
         return float("nan"), float("nan")
-    idx = _resamples(base.size, n_boot, seed)
-    mb, mc = base[idx].mean(axis=1), cand[idx].mean(axis=1)
+    mb, mc = _resampled_means(base, cand, n_boot, seed, paired)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = (mc - mb) / np.abs(mb)
     if not np.isfinite(rel).all():
@@ -177,12 +206,40 @@ def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, 
 
 
 COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "rel_ci_low", "rel_ci_high", "n",
-           "unpaired", "verdict"]
-"""After the cell's keys: the means over the paired seeds, change, its CI, the relative change and its CI, ``n``
-pairs, ``unpaired`` seeds that only one side ran (left out of the pairing), verdict."""
+           "n_candidate", "unpaired", "verdict"]
+"""After the cell's keys: the means over the compared runs, change, its CI, the relative change and its CI, ``n``
+baseline runs compared (the pairs, when paired) and ``n_candidate`` candidate runs (= ``n`` when paired),
+``unpaired`` seeds that only one side ran (left out of the pairing), verdict."""
 
 
-def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS) -> pd.DataFrame:
+def _one_sided_row(row: dict, b: pd.DataFrame | None, c: pd.DataFrame | None) -> dict:
+    """A cell on one side only: its mean there, ``missing`` (baseline only) or ``new`` (candidate only)."""
+    def mean(g):
+        return np.nan if g is None else g[g["status"] == "ok"]["value"].mean()
+    row.update(baseline=mean(b), candidate=mean(c), change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan,
+               rel_ci_low=np.nan, rel_ci_high=np.nan, n=0, n_candidate=0, unpaired=0,
+               verdict="missing" if c is None else "new")
+    return row
+
+
+def _samples(b: pd.DataFrame, c: pd.DataFrame, paired: bool) -> tuple[np.ndarray, np.ndarray, bool, int]:
+    """The values compared, ``(base, cand, newly_diverged, unpaired)``. Paired: the seeds both sides ran and
+    finished (a seed that diverged only in the candidate makes it worse). Unpaired: every finished run of each
+    side (a larger share of diverged runs in the candidate makes it worse)."""
+    if not paired:
+        b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
+        return b["value"][b_ok].to_numpy(), c["value"][c_ok].to_numpy(), bool((~c_ok).mean() > (~b_ok).mean()), 0
+    b, c = b.set_index("seed"), c.set_index("seed")
+    seeds = b.index.intersection(c.index)
+    unpaired = len(b.index.union(c.index)) - len(seeds)
+    b, c = b.loc[seeds], c.loc[seeds]
+    b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
+    both = b_ok & c_ok
+    return b["value"][both].to_numpy(), c["value"][both].to_numpy(), bool((b_ok & ~c_ok).any()), unpaired
+
+
+def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS,
+                   paired: bool = True) -> pd.DataFrame:
     """One row per cell with baseline, candidate, change, CI and verdict, sorted by severity."""
     rows = []
     bg = dict(list(base.groupby(keys, sort=True)))
@@ -190,30 +247,19 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
     for cell in sorted(set(bg) | set(cg)):
         row = dict(zip(keys, cell))
         if cell not in cg or cell not in bg:
-            g = bg.get(cell, cg.get(cell))
-            ok = g[g["status"] == "ok"]["value"]
-            row.update(baseline=ok.mean() if cell in bg else np.nan, candidate=ok.mean() if cell in cg else np.nan,
-                       change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan, rel_ci_low=np.nan,
-                       rel_ci_high=np.nan, n=0, unpaired=0,
-                       verdict="missing" if cell in bg else "new")
-            rows.append(row)
+            rows.append(_one_sided_row(row, bg.get(cell), cg.get(cell)))
             continue
-        b = bg[cell].set_index("seed")
-        c = cg[cell].set_index("seed")
-        seeds = b.index.intersection(c.index)
-        unpaired = len(b.index.union(c.index)) - len(seeds)
-        b, c = b.loc[seeds], c.loc[seeds]
-        b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
-        newly_diverged = bool((b_ok & ~c_ok).any())
-        both = b_ok & c_ok
-        d = (c["value"] - b["value"])[both].to_numpy()
-        bm, cm = float(b["value"][both].mean()), float(c["value"][both].mean())
+        bv, cv, newly_diverged, unpaired = _samples(bg[cell], cg[cell], paired)
+        bm, cm = float(bv.mean()) if bv.size else np.nan, float(cv.mean()) if cv.size else np.nan
         change = cm - bm
-        lo, hi = paired_bootstrap_ci(d, tol.level, tol.n_boot)
-        rel_lo, rel_hi = relative_change_ci(b["value"][both].to_numpy(), c["value"][both].to_numpy(), tol.level, tol.n_boot)
+        if paired:
+            lo, hi = paired_bootstrap_ci(cv - bv, tol.level, tol.n_boot)
+        else:
+            lo, hi = unpaired_bootstrap_ci(bv, cv, tol.level, tol.n_boot)
+        rel_lo, rel_hi = relative_change_ci(bv, cv, tol.level, tol.n_boot, paired=paired)
         sign = -1.0 if row["metric"] in HIGHER_IS_BETTER else 1.0
         within = abs(change) <= tol.atol + tol.rtol * abs(bm)
-        significant = d.size < 2 or not (lo <= 0.0 <= hi)
+        significant = min(bv.size, cv.size) < 2 or not (lo <= 0.0 <= hi)
         if newly_diverged:
             verdict = "worse"
         elif within or not significant or np.isnan(change):
@@ -221,8 +267,8 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         else:
             verdict = "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
-                   ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=int(both.sum()), unpaired=unpaired,
-                   verdict=verdict)
+                   ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=bv.size, n_candidate=cv.size,
+                   unpaired=unpaired, verdict=verdict)
         rows.append(row)
     out = pd.DataFrame(rows, columns=keys + COLUMNS)
     out["_sev"] = out["verdict"].map(SEVERITY)
@@ -257,16 +303,17 @@ def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str]
         rows.append({"experiment": key[0], "scenario": "–", "variant": "–", "signal": key[1], "metric": "claim",
                      "baseline": np.nan if b is None else float(b), "candidate": np.nan if c is None else float(c),
                      "change": np.nan, "rel_change": np.nan, "ci_low": np.nan, "ci_high": np.nan, "n": 0,
-                     "unpaired": 0, "verdict": verdict})
+                     "n_candidate": 0, "unpaired": 0, "verdict": verdict})
     return pd.DataFrame(rows, columns=KEYS + COLUMNS)
 
 
-def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
+def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
+                 paired: bool = True) -> pd.DataFrame:
     """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
     most severe first."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
-    check_compatible(bdirs, cdirs)
-    table = compare_frames(*select_metrics([load_metrics(bdirs), load_metrics(cdirs)], metrics), tol)
+    check_compatible(bdirs, cdirs, paired)
+    table = compare_frames(*select_metrics([load_metrics(bdirs), load_metrics(cdirs)], metrics), tol, paired=paired)
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bdirs), load_claims(cdirs))
         if len(claims):
@@ -276,14 +323,16 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     return table
 
 
-def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance()) -> pd.DataFrame:
-    """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed."""
+def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
+                     paired: bool = True) -> pd.DataFrame:
+    """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed (unpaired:
+    as independent samples)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics)
     for v in (a, b):
         if v not in set(df["variant"]):
             raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df['variant'])))})")
     keys = ["experiment", "scenario", "signal", "metric"]
-    out = compare_frames(df[df["variant"] == a], df[df["variant"] == b], tol, keys)
+    out = compare_frames(df[df["variant"] == a], df[df["variant"] == b], tol, keys, paired)
     out.insert(2, "variant", f"{b} vs {a}")
     return out
 
@@ -304,7 +353,9 @@ def _fmt(x) -> str:
 
 
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
-ONLY_IN = {"missing": "baseline", "new": "candidate"}  # the side a one-sided cell or experiment is on
+ONLY_IN = {"missing": "baseline", "new": "candidate"}
+UNPAIRED_NOTE = ("Unpaired: each side's runs are an independent sample (its own seeds and noise); the CIs resample each "
+                 "side on its own, so they are wider than a paired comparison's. `seeds`: baseline/candidate runs.")  # the side a one-sided cell or experiment is on
 
 
 def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
@@ -317,12 +368,13 @@ def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
     return {e: v for e, v in per.items() if v in ("missing", "new")}
 
 
-def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False) -> str:
+def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False,
+                paired: bool = True) -> str:
     """A markdown table of the cells, most severe first (for a PR comment or a CI log).
 
     ``same`` and ``new`` cells are only counted, in a line under the table, unless ``all_cells``: a full
     reference holds thousands of them, and a gate's reader needs the changed ones. An experiment present on
-    one side only is one row (``all_cells`` lists its cells).
+    one side only is one row (``all_cells`` lists its cells). Unpaired, ``seeds`` is ``baseline/candidate`` runs.
     """
     whole = {} if all_cells else one_sided_experiments(table)
     shown = table if all_cells else table[~table["verdict"].isin(QUIET) & ~table["experiment"].isin(list(whole))]
@@ -348,8 +400,9 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
             ci = f"[{r.rel_ci_low:+.1%}, {r.rel_ci_high:+.1%}]"
         else:
             ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
+        seeds = r.n if paired else f"{r.n}/{r.n_candidate}"
         lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
-                     f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {r.n} |")
+                     f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {seeds} |")
     rest = table[~table["experiment"].isin(list(whole))]
     if len(rest) > len(shown):
         counts = rest["verdict"].value_counts()
@@ -360,5 +413,7 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         note = (f"{len(unpaired)} cell(s) have seeds that only one side ran (up to {unpaired['unpaired'].max()} per "
                 "cell): they are left out, each cell is compared on the seeds both ran (`seeds`).")
         lines += ["", note]
+    if not paired:
+        lines += ["", UNPAIRED_NOTE]
     return "\n".join(lines) + "\n"
 
