@@ -81,13 +81,25 @@ def key_path(root: Any, loc: tuple, unknown: bool = False) -> tuple[str, list[st
     return ".".join(parts), []
 
 
-def unknown_key_hint(key: str, allowed: list[str], most: int = 12) -> str:
-    """' (did you mean delta_p1 or delta_psi1?)' for a near miss, else the allowed keys."""
+def near_misses(key: str, allowed: list[str]) -> list[str]:
+    """Up to three of ``allowed`` closest to the last part of ``key`` (a typo's likely intent), closest first."""
     name = key.rsplit(".", 1)[-1]
     scores = {a: difflib.SequenceMatcher(None, name, a).ratio() for a in allowed}
-    near = sorted((a for a in allowed if scores[a] >= 0.6), key=lambda a: (-scores[a], a))[:3]  # ties by name
+    return sorted((a for a in allowed if scores[a] >= 0.6), key=lambda a: (-scores[a], a))[:3]  # ties by name
+
+
+def did_you_mean(names: list[str]) -> str:
+    """' (did you mean a, b or c?)', or '' for no names."""
+    if not names:
+        return ""
+    return f" (did you mean {' or '.join(names) if len(names) < 3 else ', '.join(names[:-1]) + ' or ' + names[-1]}?)"
+
+
+def unknown_key_hint(key: str, allowed: list[str], most: int = 12) -> str:
+    """' (did you mean delta_p1 or delta_psi1?)' for a near miss, else the allowed keys."""
+    near = near_misses(key, allowed)
     if near:
-        return f" (did you mean {' or '.join(near) if len(near) < 3 else ', '.join(near[:-1]) + ' or ' + near[-1]}?)"
+        return did_you_mean(near)
     if allowed:
         shown = ", ".join(allowed[:most]) + (", …" if len(allowed) > most else "")
         return f" (allowed here: {shown})"

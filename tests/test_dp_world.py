@@ -174,8 +174,11 @@ def test_sweep_cli_tiny_grid(tmp_path):
                                      "--seeds", "2", "--out", str(tmp_path), "--resume"])
     assert again.exit_code == 0 and "up to date (same inputs)" in again.output
     assert (d2 / "manifest.json").stat().st_mtime_ns == written
-    bad = CliRunner().invoke(app, ["sweep", "zeta", "--config", str(cfg), "--out", str(tmp_path)])
+    bad = CliRunner().invoke(app, ["sweep", "gamma", "--config", str(cfg), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "unknown parameter" in bad.output and "sweepable" in bad.output
+    assert "did you mean" not in bad.output  # nothing near 'gamma'
+    typo = CliRunner().invoke(app, ["sweep", "k", "delat", "--config", str(cfg), "--out", str(tmp_path)])
+    assert typo.exit_code == 2 and "['delat'] (did you mean delta?); sweepable: ['delta', 'eps', 'k']" in typo.output
 
 
 def test_interrupted_sweep_resumes_without_rerunning_finished_batches(tmp_path, monkeypatch):

@@ -27,6 +27,7 @@ from scipy.stats import spearmanr
 from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.config import Experiment, SweepSpec, Variant
 from marinebench.errors import ClusterError, ConfigError
+from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 
@@ -93,7 +94,8 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     unknown = [p for p in params if p not in spec.params]
     if unknown:
-        raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}; sweepable: {sorted(spec.params)}")
+        near = did_you_mean(list(dict.fromkeys(m for p in unknown for m in near_misses(p, sorted(spec.params)))))
+        raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}{near}; sweepable: {sorted(spec.params)}")
     twice = sorted({p for p in params if list(params).count(p) > 1})
     if twice and not grid:
         raise ConfigError("PARAM", "", f"parameter(s) {twice} given more than once ({file})")
