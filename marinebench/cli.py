@@ -523,12 +523,16 @@ def report(
     results: Annotated[Path, typer.Argument(metavar="RESULTS", help="result directory or tree")],
     out_file: Annotated[Path, typer.Option("--out", metavar="FILE", help="HTML file to write")] = Path("report.html"),
     compare_with: Annotated[Path | None, typer.Option("--compare", metavar="BASELINE", help="baseline results to compare against")] = None,
+    unpaired: Annotated[bool, typer.Option(help="with --compare: the two sides as independent samples (as compare "
+                                           "--unpaired)")] = False,
 ) -> None:
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
     from marinebench.results.report import render_report
 
+    if unpaired and compare_with is None:
+        fail("--unpaired: compares the results with a baseline, so it needs --compare BASELINE")
     with one_line_errors():
-        html = render_report(results, compare_with)
+        html = render_report(results, compare_with, paired=not unpaired)
     _write_text(out_file, html, "--out")
     out.print(f"report -> {out_file}", markup=False)
 

@@ -71,3 +71,21 @@ def test_report_renders_in_headless_chromium(report, tmp_path):
     img = image.imread(shot)[..., :3]
     nonwhite = (img.mean(axis=2) < 0.9).mean()
     assert img.std() > 0.05 and nonwhite > 0.02  # not blank
+
+
+def test_report_compares_other_root_seeds_only_unpaired(report, tmp_path):
+    """A run on another root seed: the paired comparison refuses it in one line naming --unpaired, which the
+    report takes too; --unpaired without --compare has nothing to act on."""
+    root, _ = report
+    tiny = next(root.glob("new/*/config.resolved.yaml")).parent
+    assert runner.invoke(app, ["run", str(tiny / "config.resolved.yaml"), "--seed", "7", "--out", str(tmp_path / "s7"),
+                               "--quiet"]).exit_code == 0
+    args = ["report", str(tmp_path / "s7"), "--out", str(tmp_path / "r.html"), "--compare", str(root / "base")]
+    paired = runner.invoke(app, args)
+    assert paired.exit_code == 2 and "--unpaired compares them" in paired.output and not (tmp_path / "r.html").exists()
+    res = runner.invoke(app, [*args, "--unpaired"])
+    assert res.exit_code == 0, res.output
+    html = (tmp_path / "r.html").read_text()
+    assert "Comparison with" in html and "Unpaired: each side" in html and "12 same" in html
+    alone = runner.invoke(app, ["report", str(tmp_path / "s7"), "--out", str(tmp_path / "x.html"), "--unpaired"])
+    assert alone.exit_code == 2 and "needs --compare BASELINE" in alone.output

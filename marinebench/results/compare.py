@@ -14,9 +14,9 @@ A run that diverged in the candidate but not in the baseline is ``worse``, and s
 in common are refused (:func:`require_pairs`): a gate that pairs nothing must not pass.
 
 *Unpaired* (``paired=False``, ``compare --unpaired``): the two sides are independent samples, e.g. a candidate
-run on another root seed to see whether a change holds on fresh noise. Every run of a cell counts, the CIs
-resample each side separately (wider than paired ones, which cancel the noise both sides share), and only the
-root seed may differ between the worlds.
+run on another root seed to see whether a change holds on fresh noise. Every run of a cell counts, the CI is
+Welch's t interval of the difference of the means (:func:`welch_ci`; wider than a paired one, which cancels the
+noise both sides share), and only the root seed may differ between the worlds.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from pydantic import TypeAdapter, ValidationError
+from scipy.stats import t as student_t
 
 from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
@@ -166,38 +167,36 @@ def paired_bootstrap_ci(diff: np.ndarray, level: float = 0.95, n_boot: int = 200
     return _percentile_ci(diff[_resamples(diff.size, n_boot, seed)].mean(axis=1), level)
 
 
-def _resampled_means(base: np.ndarray, cand: np.ndarray, n_boot: int, seed: int,
-                     paired: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(n_boot,)`` bootstrap means of each side: paired, the same seed indices on both sides (the draws of
-    :func:`paired_bootstrap_ci`); unpaired, each side resampled on its own."""
-    ib = _resamples(base.size, n_boot, seed)
-    ic = ib if paired else _resamples(cand.size, n_boot, seed + 1)
-    return base[ib].mean(axis=1), cand[ic].mean(axis=1)
-
-
-def unpaired_bootstrap_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
-                          seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap CI of ``mean(cand) − mean(base)`` for independent samples (each side resampled on
-    its own; the sizes may differ)."""
+def welch_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95) -> tuple[float, float]:
+    """Welch's t interval of ``mean(cand) − mean(base)`` for independent samples (the sizes may differ). Used
+    unpaired rather than a bootstrap: with the few seeds of a run (2–5 per side) a percentile bootstrap of two
+    independent means is far too narrow (2 against 2, it excludes zero whenever both candidate values lie on the
+    same side of both baseline values: one case in three under no change at all), where Welch's degrees of
+    freedom widen the interval as they should."""
     base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
     if min(base.size, cand.size) < 2:
         return float("nan"), float("nan")
-    mb, mc = _resampled_means(base, cand, n_boot, seed, paired=False)
-    return _percentile_ci(mc - mb, level)
+    d = float(cand.mean() - base.mean())
+    vb, vc = base.var(ddof=1) / base.size, cand.var(ddof=1) / cand.size
+    if vb + vc == 0:
+        return d, d
+    dof = (vb + vc) ** 2 / (vb**2 / (base.size - 1) + vc**2 / (cand.size - 1))
+    half = float(student_t.ppf(0.5 + level / 2, dof) * np.sqrt(vb + vc))
+    return d - half, d + half
 
 
 def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, n_boot: int = 2000,
-                       seed: int = 0, paired: bool = True) -> tuple[float, float]:
+                       seed: int = 0) -> tuple[float, float]:
     """Percentile bootstrap CI of the relative change of the means, ``mean(cand) / mean(base) − 1``, resampling the
     pairs (the same draws as :func:`paired_bootstrap_ci`, so the same share of them is below zero when the
-    baseline is positive; the verdict stays with that one), or, unpaired, each side on its own (the draws of
-    :func:`unpaired_bootstrap_ci`). For an error metric it stays above −100 %, where
+    baseline is positive; the verdict stays with that one). For an error metric it stays above −100 %, where
     the CI of the difference divided by the baseline's mean need not: a resample that repeats the seed with the
     largest error changes the difference more than the mean."""
     base, cand = np.asarray(base, dtype=float), np.asarray(cand, dtype=float)
-    if min(base.size, cand.size) < 2:
+    if base.size < 2:
         return float("nan"), float("nan")
-    mb, mc = _resampled_means(base, cand, n_boot, seed, paired)
+    idx = _resamples(base.size, n_boot, seed)
+    mb, mc = base[idx].mean(axis=1), cand[idx].mean(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = (mc - mb) / np.abs(mb)
     if not np.isfinite(rel).all():
@@ -254,9 +253,10 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         change = cm - bm
         if paired:
             lo, hi = paired_bootstrap_ci(cv - bv, tol.level, tol.n_boot)
-        else:
-            lo, hi = unpaired_bootstrap_ci(bv, cv, tol.level, tol.n_boot)
-        rel_lo, rel_hi = relative_change_ci(bv, cv, tol.level, tol.n_boot, paired=paired)
+            rel_lo, rel_hi = relative_change_ci(bv, cv, tol.level, tol.n_boot)
+        else:  # the same interval in % of the baseline, so that the markdown's CI and the verdict agree
+            lo, hi = welch_ci(bv, cv, tol.level)
+            rel_lo, rel_hi = (lo / abs(bm), hi / abs(bm)) if bm else (np.nan, np.nan)
         sign = -1.0 if row["metric"] in HIGHER_IS_BETTER else 1.0
         within = abs(change) <= tol.atol + tol.rtol * abs(bm)
         significant = min(bv.size, cv.size) < 2 or not (lo <= 0.0 <= hi)
@@ -354,8 +354,9 @@ def _fmt(x) -> str:
 
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
 ONLY_IN = {"missing": "baseline", "new": "candidate"}
-UNPAIRED_NOTE = ("Unpaired: each side's runs are an independent sample (its own seeds and noise); the CIs resample each "
-                 "side on its own, so they are wider than a paired comparison's. `seeds`: baseline/candidate runs.")  # the side a one-sided cell or experiment is on
+UNPAIRED_NOTE = ("Unpaired: each side's runs are an independent sample (its own seeds and noise); the CI is Welch's t "
+                 "interval of the difference of the means, in % of the baseline's, wider than a paired comparison's. "
+                 "`seeds`: baseline/candidate runs.")  # the side a one-sided cell or experiment is on
 
 
 def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:

@@ -93,7 +93,7 @@ def claims_overview(dirs: dict[str, Path]) -> str:
                       "| experiment | hold | failing |", "|---|---|---|", *rows]) + "\n"
 
 
-def render_report(results: Path, compare_with: Path | None = None) -> str:
+def render_report(results: Path, compare_with: Path | None = None, paired: bool = True) -> str:
     dirs = find_results(results)
     parts = [f"<h1>marinebench report: {html.escape(str(results))}</h1>",
              ("<p>Tables show our results (mean and 95% CI over seeds) beside the papers' published values, which "
@@ -102,9 +102,9 @@ def render_report(results: Path, compare_with: Path | None = None) -> str:
     if overview := claims_overview(dirs):
         parts.append(markdown_to_html(overview))
     if compare_with is not None:
-        table = compare_dirs(compare_with, results)
+        table = compare_dirs(compare_with, results, paired=paired)
         parts.append(f"<h2 id='comparison'>Comparison with {html.escape(str(compare_with))}</h2>")
-        parts.append(markdown_to_html(to_markdown(table, "compare")))
+        parts.append(markdown_to_html(to_markdown(table, "compare", paired=paired)))
     for name, d in dirs.items():
         parts.append(f'<h2 id="{html.escape(name)}">{html.escape(name)}</h2>')
         for md in ("table.md", "claims.md"):
