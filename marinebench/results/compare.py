@@ -353,10 +353,10 @@ def _fmt(x) -> str:
 
 
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
-ONLY_IN = {"missing": "baseline", "new": "candidate"}
+ONLY_IN = {"missing": "baseline", "new": "candidate"}  # the side a one-sided cell or experiment is on
 UNPAIRED_NOTE = ("Unpaired: each side's runs are an independent sample (its own seeds and noise); the CI is Welch's t "
                  "interval of the difference of the means, in % of the baseline's, wider than a paired comparison's. "
-                 "`seeds`: baseline/candidate runs.")  # the side a one-sided cell or experiment is on
+                 "`seeds`: baseline/candidate runs.")  # under an unpaired comparison's table
 
 
 def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
