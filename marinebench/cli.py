@@ -29,6 +29,8 @@ DEFAULT_SWEEP = Path("configs/torben_fig3.yaml")  # relative to the working dire
 SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help=f"experiment with a sweep section (default: {DEFAULT_SWEEP})")]
 Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")]
 ProfileName = Annotated[str | None, typer.Option("--profile", metavar="NAME", help="apply the config's named profile (e.g. quick)")]
+Unpaired = Annotated[bool, typer.Option("--unpaired", help="compare the two sides as independent samples (e.g. runs on "
+                                        "another --seed): every run counts, Welch's t interval (wider)")]
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 out = Console(highlight=False, soft_wrap=True)
 
@@ -483,11 +485,10 @@ def compare(
                                          "metric) also fails, as a worse cell does")] = False,
     all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
                                             "csv always hold every cell)")] = False,
-    unpaired: Annotated[bool, typer.Option(help="compare the two sides as independent samples (e.g. a candidate run "
-                                           "with another --seed): every run counts, wider CIs")] = False,
+    unpaired: Unpaired = False,
 ) -> None:
-    """Paired comparison with bootstrap CIs. Exit 0: nothing worse; 1: something worse (or, with --strict,
-    missing); 2: unusable input."""
+    """Compare results cell by cell over seeds: paired on seed with bootstrap CIs (or --unpaired). Exit 0: nothing
+    worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
     from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
 
     if rtol < 0 or atol < 0:
@@ -523,8 +524,7 @@ def report(
     results: Annotated[Path, typer.Argument(metavar="RESULTS", help="result directory or tree")],
     out_file: Annotated[Path, typer.Option("--out", metavar="FILE", help="HTML file to write")] = Path("report.html"),
     compare_with: Annotated[Path | None, typer.Option("--compare", metavar="BASELINE", help="baseline results to compare against")] = None,
-    unpaired: Annotated[bool, typer.Option(help="with --compare: the two sides as independent samples (as compare "
-                                           "--unpaired)")] = False,
+    unpaired: Unpaired = False,
 ) -> None:
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
     from marinebench.results.report import render_report
