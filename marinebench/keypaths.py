@@ -73,7 +73,7 @@ def key_path(root: Any, loc: tuple, unknown: bool = False) -> tuple[str, list[st
             continue
         if unknown and i == len(loc) - 1:
             parts.append(p)
-            return ".".join(parts), sorted({f for m in models for f in m.model_fields})
+            return ".".join(parts), sorted({f for m in models for f in m.model_fields}) + nested_keys(models, p)
         if tp is not Any and len(members) > 1:  # a plain union's member named by its type, e.g. 'list[float]'
             tp = Any
             continue
@@ -81,10 +81,39 @@ def key_path(root: Any, loc: tuple, unknown: bool = False) -> tuple[str, list[st
     return ".".join(parts), []
 
 
+def nested_keys(models: list[Any], name: str, depth: int = 3) -> list[str]:
+    """Dotted paths below ``models``' fields, at most ``depth`` keys long, that end in a field ``name``: where a
+    key written at the wrong level belongs (``horizon`` at the top is ``scenario.horizon``). A list's item is
+    written ``<i>``, a mapping's value ``<name>``; shortest first."""
+    found: set[str] = set()
+    for model in models:
+        for field, info in model.model_fields.items():
+            for inner, step in _children(info.annotation):
+                if name in inner.model_fields:
+                    found.add(f"{field}{step}.{name}")
+                if depth > 2:
+                    found |= {f"{field}{step}.{sub}" for sub in nested_keys([inner], name, depth - 1)}
+    return sorted(found, key=lambda k: (k.count("."), k))
+
+
+def _children(tp: Any) -> list[tuple[type[BaseModel], str]]:
+    """The model types a field of type ``tp`` holds, each with the step to it: '' (the field itself), '.<i>' (a
+    list's items) or '.<name>' (a mapping's values)."""
+    out = []
+    for member, _ in _members(tp):
+        if _is_model(member):
+            out.append((member, ""))
+        elif get_origin(member) in (list, tuple, dict):
+            step = ".<name>" if get_origin(member) is dict else ".<i>"
+            out += [(m, step) for m, _ in _members(_inner(member, 1 if step == ".<name>" else 0)) if _is_model(m)]
+    return out
+
+
 def near_misses(key: str, allowed: list[str]) -> list[str]:
-    """Up to three of ``allowed`` closest to the last part of ``key`` (a typo's likely intent), closest first."""
-    name = key.rsplit(".", 1)[-1]
-    scores = {a: difflib.SequenceMatcher(None, name, a).ratio() for a in allowed}
+    """Up to three of ``allowed`` closest to the last part of ``key`` (a typo's likely intent, case aside: ``xuu``
+    finds ``X_uu``), closest first."""
+    name = key.rsplit(".", 1)[-1].lower()
+    scores = {a: difflib.SequenceMatcher(None, name, a.lower()).ratio() for a in allowed}
     return sorted((a for a in allowed if scores[a] >= 0.6), key=lambda a: (-scores[a], a))[:3]  # ties by name
 
 
@@ -96,10 +125,17 @@ def did_you_mean(names: list[str]) -> str:
 
 
 def unknown_key_hint(key: str, allowed: list[str], most: int = 12) -> str:
-    """' (did you mean delta_p1 or delta_psi1?)' for a near miss, else the allowed keys."""
+    """' (did you mean delta_p1 or delta_psi1?)' for a near miss among the keys allowed beside ``key``; else the
+    same key one or two levels further down (dotted entries of ``allowed``, :func:`nested_keys`); else the
+    allowed keys."""
+    deeper = [a for a in allowed if "." in a]
+    allowed = [a for a in allowed if "." not in a]
     near = near_misses(key, allowed)
     if near:
         return did_you_mean(near)
+    if deeper:
+        parent = key.rpartition(".")[0]
+        return did_you_mean([f"{parent}.{d}" if parent else d for d in deeper[:3]])
     if allowed:
         shown = ", ".join(allowed[:most]) + (", …" if len(allowed) > most else "")
         return f" (allowed here: {shown})"

@@ -75,6 +75,23 @@ def test_hint_lists_the_allowed_keys_without_a_near_miss():
     assert unknown_key_hint("a.alpah", ["alpha", "beta"]) == " (did you mean alpha?)"
     assert unknown_key_hint("zzz", []) == ""
     assert unknown_key_hint("notch_wo", ["notch", "notch_w0", "notch_wc"]) == " (did you mean notch_w0, notch_wc or notch?)"
+    assert unknown_key_hint("vessel.xuu", ["X_u", "X_uu", "Y_v"]) == " (did you mean X_uu or X_u?)"  # case aside
+
+
+def test_a_key_at_the_wrong_level_is_found_further_down():
+    doc = experiment() | {"horizon": 10}
+    with pytest.raises(ValidationError) as exc:
+        Experiment.model_validate(doc)
+    key, allowed = key_path(Experiment, exc.value.errors()[0]["loc"], unknown=True)
+    assert key == "horizon" and "horizon" not in allowed
+    assert unknown_key_hint(key, allowed) == " (did you mean scenario.horizon or scenarios.<name>.horizon?)"
+    doc = experiment() | {"k_omega": 1}
+    with pytest.raises(ValidationError) as exc:
+        Experiment.model_validate(doc)
+    assert unknown_key_hint(*key_path(Experiment, exc.value.errors()[0]["loc"], unknown=True)) == (
+        " (did you mean variants.<i>.observer.k_omega?)")
+    # a near miss beside the key wins over the same name further down
+    assert unknown_key_hint("seeed", ["seed", "seeds", "scenario.seeed"]) == " (did you mean seed or seeds?)"
 
 
 def _leaves(node, prefix=()):
