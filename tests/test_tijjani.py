@@ -274,3 +274,16 @@ def test_random_load_is_a_held_stationary_gauss_markov_sequence():
     assert np.array_equal(w.loads(0.098, x), first)
     w.begin_step(50, 0.1, x)
     assert not np.array_equal(w.loads(0.1, x), first)
+
+
+def test_table_caption_says_what_each_error_is():
+    """Controller-only variants are scored on the tracking error (their 'estimate' is the reference); observed
+    variants on the observer's error."""
+    from marinebench.results.tables import _window
+
+    tracking, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    observed, _ = load_experiment(ROOT / "configs" / "tijjani_observers.yaml")
+    assert "rmse of the tracking error (reference − actual)" in _window(tracking.part("S1"), "rmse")
+    assert "rmse of est − truth" in _window(observed, "rmse")
+    mixed = observed.model_copy(update={"variants": [*observed.variants, tracking.variants[0]]})
+    assert "for controllers without an observer: reference − actual" in _window(mixed, "rmse")

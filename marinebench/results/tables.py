@@ -23,7 +23,18 @@ def _window(exp: Experiment, name: str) -> str:
     if m.kind == "recovery":
         what = "the same run without the pushes" if m.against == "undisturbed" else "the reference"
         return f"{name}: largest time after a push until the vehicle stays within {m.tol} of {what} [s]"
-    return f"{name}: {m.kind} of est − truth over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
+    return f"{name}: {m.kind} of {_error_text(exp)} over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
+
+
+def _error_text(exp: Experiment) -> str:
+    """What an error metric's ``est − truth`` is: a closed-loop variant observed through no observer is scored on
+    its tracking error (its 'estimate' is the reference, rov_scenario's ``estimates``)."""
+    tracking = [v.observer is None for v in exp.variants]
+    if all(tracking):
+        return "the tracking error (reference − actual)"
+    if any(tracking):
+        return "est − truth (for controllers without an observer: reference − actual)"
+    return "est − truth"
 
 
 def settings_text(settings) -> str:
