@@ -84,7 +84,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
                  "'–' where a variant does not run on a scenario.")
     if paper is not None:
         lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
-                     "not computed" + (" (paper units: " + ", ".join(f"{k} in {u}" for k, u in paper.units.items()) + ")"
+                     "not computed" + (" (paper units: " + "; ".join(f"{k}: {u}" for k, u in paper.units.items()) + ")"
                                        if paper.units else "") + ".")
     lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for name in names:
