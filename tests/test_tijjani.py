@@ -285,5 +285,6 @@ def test_table_caption_says_what_each_error_is():
     observed, _ = load_experiment(ROOT / "configs" / "tijjani_observers.yaml")
     assert "rmse of the tracking error (reference − actual)" in _window(tracking.part("S1"), "rmse")
     assert "rmse of est − truth" in _window(observed, "rmse")
+    assert "from the first time the tracking error is within 0.01 (depth), 0.0175 (yaw)" in _window(tracking.part("S1"), "int")
     mixed = observed.model_copy(update={"variants": [*observed.variants, tracking.variants[0]]})
     assert "for controllers without an observer: reference − actual" in _window(mixed, "rmse")

@@ -19,11 +19,18 @@ def _window(exp: Experiment, name: str) -> str:
         a, b = m.window(exp.scenario.horizon)
         return f"{name}: ∫‖z_bis − ẑ_bis‖dt over t ∈ [{a:g}, {b:g}) s"
     if m.kind == "int":
-        return f"{name}: ∫τ²dt from the first time the tracking error is within {m.tol}"
+        return f"{name}: ∫τ²dt from the first time the tracking error is within {_per_signal(m.tol)}"
     if m.kind == "recovery":
         what = "the same run without the pushes" if m.against == "undisturbed" else "the reference"
-        return f"{name}: largest time after a push until the vehicle stays within {m.tol} of {what} [s]"
+        return f"{name}: largest time after a push until the vehicle stays within {_per_signal(m.tol)} of {what} [s]"
     return f"{name}: {m.kind} of {_error_text(exp)} over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
+
+
+def _per_signal(value) -> str:
+    """A tolerance given per signal ({'depth': 0.01, 'yaw': 0.0175}) as '0.01 (depth), 0.0175 (yaw)'."""
+    if isinstance(value, dict):
+        return ", ".join(f"{v:g} ({k})" for k, v in value.items())
+    return f"{value:g}"
 
 
 def _error_text(exp: Experiment) -> str:
