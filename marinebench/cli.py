@@ -563,6 +563,45 @@ def validate(
 
 
 @app.command()
+def design(
+    files: Annotated[list[Path], typer.Argument(metavar="CONFIG", help="experiment YAML files")],
+    set_: Sets = None,
+    profile: ProfileName = None,
+    as_json: Annotated[bool, typer.Option("--json", help="JSON instead of YAML")] = False,
+) -> None:
+    """Solve and print each variant's observer design without simulating: LMI gains and poles (Bejarano, the
+    CDO's K*), Kalman gains L1/L2 (Torben), ESO gains, as the manifest records them. With --set, e.g.
+    scenario.cdo.lmi_decay=0.2, a design is recomputed for other settings."""
+    import yaml
+
+    from marinebench.experiments.runner import design_summary
+
+    designs = {}
+    for f in files:
+        with one_line_errors():
+            exp, _ = _load(f, set_ or [], None, None, profile)
+            parts = {name: design_summary(exp.part(name)) for name in exp.scenarios} if exp.scenarios else None
+            designs[exp.name] = parts or design_summary(exp)
+    plain = json.loads(json.dumps(designs, default=float))  # numpy scalars -> floats
+    if as_json:
+        sys.stdout.write(json.dumps(plain, indent=2) + "\n")
+    else:
+        sys.stdout.write(yaml.safe_dump(_rounded(plain), sort_keys=False, default_flow_style=None, width=120,
+                                        allow_unicode=True))
+
+
+def _rounded(obj, digits: int = 6):
+    """Floats in a nested document to ``digits`` significant digits (for reading; --json keeps them all)."""
+    if isinstance(obj, float):
+        return float(f"{obj:.{digits}g}")
+    if isinstance(obj, dict):
+        return {k: _rounded(v, digits) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_rounded(v, digits) for v in obj]
+    return obj
+
+
+@app.command()
 def schema(kind: Annotated[str, typer.Option(metavar="KIND", help="experiment or scenario")] = "experiment") -> None:
     """Print the JSON Schema of experiment (or scenario) YAML files as written (with from:, scenario paths),
     for editor completion and checking."""

@@ -137,9 +137,24 @@ def apply_set(doc: dict, assignment: str) -> str:
             node[idx] = value
         else:
             if isinstance(node, dict) and idx not in node:
+                if i < 2:
+                    _check_world_key(doc, key, where)
                 node[idx] = {}
             node = node[idx]
     return ".".join(where)
+
+
+def _check_world_key(doc: dict, key: str, where: list[str]) -> None:
+    """A ``--set`` that would create a partial world: ``scenario.<key>`` on an experiment whose worlds are under
+    ``scenarios:``, the reverse, or ``scenarios.<new name>.<key>``; say where the key goes instead."""
+    rest = key.strip().split(".", len(where))[-1]
+    if where == ["scenario"] and isinstance(doc.get("scenarios"), dict):
+        raise ConfigError("--set", key, f"this experiment's worlds are under 'scenarios' ({', '.join(doc['scenarios'])}): "
+                          f"set scenarios.<name>.{rest}")
+    if where[0] == "scenarios" and "scenario" in doc:
+        raise ConfigError("--set", key, f"this experiment has one world, under 'scenario': set scenario.{rest.split('.', 1)[1] if '.' in rest else '<key>'}")
+    if len(where) == 2 and where[0] == "scenarios":
+        raise ConfigError("--set", key, f"no scenario '{where[1]}' (have: {', '.join(doc['scenarios'])})")
 
 
 def shown_path(path: Path) -> Path:

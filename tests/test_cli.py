@@ -306,6 +306,39 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
                                                         "(allowed here: check_step, stiffness_limit, trace_dt)")
 
 
+def test_set_into_the_wrong_world_says_where_the_key_goes():
+    multi = str(ROOT / "configs" / "tijjani_table3.yaml")
+    res = runner.invoke(app, ["validate", multi, "--set", "scenario.cdo.theta=30"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: scenario.cdo.theta: this experiment's worlds are under 'scenarios' (S1, S2-C1, S2-C2, S3): "
+        "set scenarios.<name>.cdo.theta")
+    res = runner.invoke(app, ["validate", multi, "--set", "scenarios.S9.horizon=3"])
+    assert res.exit_code == 2 and "no scenario 'S9' (have: S1, S2-C1, S2-C2, S3)" in res.output
+    assert runner.invoke(app, ["validate", multi, "--set", "scenarios.S1.horizon=3"]).exit_code == 0
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "bejarano_table4.yaml"), "--set", "scenarios.S1.horizon=3"])
+    assert res.exit_code == 2 and "one world, under 'scenario': set scenario.horizon" in res.output
+
+
+def test_design_prints_the_solved_gains_without_simulating():
+    """``design``: what the manifest records, recomputed for other settings with --set."""
+    config = str(ROOT / "configs" / "tijjani_observers.yaml")
+    res = runner.invoke(app, ["design", config, "--json"])
+    assert res.exit_code == 0, res.output
+    cdo = json.loads(res.output)["tijjani_observers"]["world_cdo"]
+    committed = json.loads((ROOT / "results" / "tijjani_observers" / "manifest.json").read_text())["designs"]["world_cdo"]
+    assert cdo["k_star"] == pytest.approx(committed["k_star"], rel=1e-6) and cdo["lmi_decay"] == 0.35
+    slower = json.loads(runner.invoke(app, ["design", config, "--json", "--set", "scenario.cdo.lmi_decay=0.2"]).output)
+    slow = slower["tijjani_observers"]["world_cdo"]
+    assert slow["lmi_decay"] == 0.2 and max(slow["poles"]) > max(cdo["poles"])  # a slower design: its slowest pole moves right
+    res = runner.invoke(app, ["design", str(ROOT / "configs" / "bejarano_table4.yaml")])  # YAML, rounded for reading
+    doc = yaml.safe_load(res.output)["bejarano_table4"]
+    assert set(doc) == {"liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2"}
+    assert doc["liu_eps0.1"]["gains"] == [30.0, 300.0, 1000.0]  # k / eps, k / eps^2, k / eps^3 to 6 digits
+    assert doc["proposed_d2.2"]["slowest_pole_p"] <= -2.2  # the LMI region: poles left of -delta_p1
+    res = runner.invoke(app, ["design", config, "--set", "scenario.cdo.lmi_decay=-1"])
+    assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.cdo.lmi_decay")
+
+
 def test_validate_all_committed_configs_and_scenarios():
     files = sorted(str(p) for p in (ROOT / "configs").glob("*.yaml")) + sorted(str(p) for p in (ROOT / "scenarios").glob("*.yaml"))
     res = runner.invoke(app, ["validate", *files])
