@@ -27,6 +27,7 @@ def test_run_writes_every_output(tiny_config, tmp_path):
     assert len(m) == 2 * 2 * 6  # variants x seeds x signals
     man = json.loads((d / "manifest.json").read_text())
     assert man["seed"] == 2024 and man["versions"]["numpy"] and man["git_revision"] and man["assumptions"]
+    assert man["machine"]["cores"] >= 1 and man["machine"]["cpu"] and isinstance(man["machine"]["numpy_simd"], list)
     assert (d / "figures" / "u.png").stat().st_size > 1000 and (d / "figures" / "sv.png").exists()
     table = (d / "table.md").read_text()
     assert "e_u paper" in table and "0.09" in table and "not computed" in table
@@ -326,7 +327,9 @@ def test_design_prints_the_solved_gains_without_simulating():
     assert res.exit_code == 0, res.output
     cdo = json.loads(res.output)["tijjani_observers"]["world_cdo"]
     committed = json.loads((ROOT / "results" / "tijjani_observers" / "manifest.json").read_text())["designs"]["world_cdo"]
-    assert cdo["k_star"] == pytest.approx(committed["k_star"], rel=1e-6) and cdo["lmi_decay"] == 0.35
+    # the interior-point LMI solution agrees across machines to the solver's accuracy, not to the last digit
+    # (1.4e-6 relative between an AVX-512 and an AVX2 host)
+    assert cdo["k_star"] == pytest.approx(committed["k_star"], rel=1e-4) and cdo["lmi_decay"] == 0.35
     slower = json.loads(runner.invoke(app, ["design", config, "--json", "--set", "scenario.cdo.lmi_decay=0.2"]).output)
     slow = slower["tijjani_observers"]["world_cdo"]
     assert slow["lmi_decay"] == 0.2 and max(slow["poles"]) > max(cdo["poles"])  # a slower design: its slowest pole moves right

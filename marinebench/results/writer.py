@@ -143,6 +143,30 @@ def versions() -> dict[str, str]:
     return out
 
 
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def machine() -> dict[str, object]:
+    """The hardware a result was computed on. numpy picks its vector kernels (and OpenBLAS its kernels) by CPU at
+    import, so the same code, seeds and versions can differ in the last digits between machines (the resetting
+    observer's threshold tests can carry such a difference into the fifth digit of a KPI); on one machine
+    reruns are byte-identical. Recorded so that such a difference is explained, not searched for."""
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    simd = np.show_config(mode="dicts").get("SIMD Extensions", {})
+    blas = sorted({f"{i['internal_api']} {i.get('architecture', '')}".strip() for i in threadpool_info()})
+    return {"platform": platform.platform(), "cpu": _cpu_model(), "cores": os.cpu_count(),
+            "numpy_simd": simd.get("found", []), "blas": blas}
+
+
 def git_revision() -> str:
     """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` outside a git checkout."""
     root = Path(__file__).resolve().parents[2]  # the checkout holding marinebench/ (an editable install)
@@ -165,6 +189,7 @@ def manifest(**fields) -> str:
         "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]),
         "git_revision": git_revision(),
         "versions": versions(),
+        "machine": machine(),
         **fields,
     }
     return json.dumps(doc, indent=2, default=float)
