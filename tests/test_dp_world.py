@@ -143,6 +143,8 @@ def test_bis_scaled_condition_number_and_check():
     assert m["resetting", "cond_max"] > 1e10 and m["resetting", "n_jumps"] == 0  # c_max = 1e10 blocks every jump
     m = short("scenario.horizon=60")
     assert m["resetting", "log10_cond_mean"] < 10  # delta = 2.5 s: well conditioned in bis units
+    # the NPO runs one gain (Phi2 = Phi1): its cond(I - Phi2 Phi1^-1) is a ratio of rounding errors, not reported
+    assert ("npo", "n_resets") in m.index and ("npo", "cond_max") not in m.index and ("npo", "log10_cond_mean") not in m.index
 
 
 def test_sweep_cli_tiny_grid(tmp_path):

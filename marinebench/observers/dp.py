@@ -178,7 +178,8 @@ class DpObserver:
             K = [np.stack([g1.K1, g2.K1]), np.stack([g1.K2, g2.K2]), np.stack([g1.K3, g2.K3])]  # (2, 3, 3) each
             if len(_DESIGNS) >= _DESIGNS_MAX:
                 _DESIGNS.clear()
-            _DESIGNS[cache_key] = {"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, key[-1])}
+            _DESIGNS[cache_key] = {"K": K, "poles": (g1.poles, g2.poles), "coef": self._fit_maps(K, key[-1]),
+                                   "one_gain": all(np.array_equal(k[0], k[1]) for k in K)}
         return _DESIGNS[cache_key]
 
     def closed_loop(self, psi: np.ndarray, K: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -269,11 +270,16 @@ class DpObserver:
         return out
 
     def diagnostics(self) -> dict[str, np.ndarray]:
+        """Resets, jumps and cond(I - Phi2 Phi1^-1) per run. With one gain (the NPO: L2 = L1) Phi2 = Phi1, the
+        matrix is zero up to rounding and its condition number a ratio of rounding errors (1e6 on one CPU,
+        1e18 on another), so those runs report no condition number (NaN: no row in ``metrics.csv``)."""
+        one_gain = np.array([c["one_gain"] for c in self.classes])[self.class_of]
+        undefined = np.where(one_gain, np.nan, 1.0)
         return {
             "n_resets": self.n_resets.astype(float),
             "n_jumps": self.n_jumps.astype(float),
-            "log10_cond_mean": self.log_cond_sum / np.maximum(self.n_resets, 1),
-            "cond_max": self.cond_max,
+            "log10_cond_mean": self.log_cond_sum / np.maximum(self.n_resets, 1) * undefined,
+            "cond_max": self.cond_max * undefined,
         }
 
     def max_rate(self) -> float:
