@@ -39,6 +39,12 @@ class BejaranoTuning(BaseModel):
         "default max(50, 5 delta)",
     )
     scale_above: float = Field(50.0, gt=0, description="solve time-scaled LMIs when delta >= this")
+    trace_weight: float = Field(
+        1e-3,
+        ge=0,
+        description="mu in the LMI objective beta + mu tr(P) (deviation: with mu = 0 the rotational problem, and the "
+        "positional one with k_n = 0, have no attained optimum and the gains depend on where the solver stops)",
+    )
 
     @model_validator(mode="after")
     def _rho_large_enough(self) -> BejaranoTuning:
@@ -54,8 +60,8 @@ class BejaranoTuning(BaseModel):
 def design(t: BejaranoTuning):
     """Solve both LMI problems and re-verify them in numpy; raises DesignError when infeasible."""
     rho_psi, rho_p = t.rho_for(t.delta_psi1), t.rho_for(t.delta_p1)
-    rot = rotational_design(t.delta_psi1, rho_psi, t.scale_above)
-    pos = positional_design(t.delta_p1, t.k_omega, t.k_n, -t.r_max, t.r_max, rho_p, t.scale_above)
+    rot = rotational_design(t.delta_psi1, rho_psi, t.scale_above, t.trace_weight)
+    pos = positional_design(t.delta_p1, t.k_omega, t.k_n, -t.r_max, t.r_max, rho_p, t.scale_above, t.trace_weight)
     for name, sol, d, rho in (("rotational", rot, t.delta_psi1, rho_psi), ("positional", pos, t.delta_p1, rho_p)):
         problems = verify(sol, d, rho)
         if problems:

@@ -33,6 +33,9 @@ STANDARD_ASSUMPTIONS = {
         "by default (shared/reference/baselines.md s.1)"),
         ("Bejarano LMIs with an added disk region |lambda| <= rho (default max(50, 5 delta)) because (16)/(28) are "
         "flat in the gains; time-scaled solve for delta >= 50 (baselines.md s.2.4)"),
+        ("Bejarano LMI objective beta + mu tr(P) (trace_weight, default 1e-3) instead of beta: without it the "
+        "rotational problem (and the positional one with k_n = 0) has no attained optimum and its gains depend on "
+        "where the solver stops (design/lmi.py)"),
         "true lumped disturbance sigma from eq. (6) with g = 0",
         _RK4,
     ],
