@@ -281,6 +281,28 @@ def test_real_run_compared_with_itself_rerun(tiny_config, tmp_path):
     shutil.rmtree(tmp_path / "c")
 
 
+def test_results_from_another_cpu_are_named_under_the_table(tmp_path):
+    """Manifests from different hardware: the summary says so (a last-digit difference is then no mystery);
+    from the same hardware, or without a machine record (older results), it says nothing."""
+    from .conftest import ROOT
+
+    for name in ("here", "same", "there"):
+        shutil.copytree(ROOT / "reference" / "quick" / "torben_fig1", tmp_path / name / "torben_fig1")
+    manifest = tmp_path / "there" / "torben_fig1" / "manifest.json"
+    doc = json.loads(manifest.read_text())
+    doc["machine"] = {"cpu": "Other CPU", "numpy_simd": ["X86_V3", "X86_V4"]}
+    manifest.write_text(json.dumps(doc))
+    res = runner.invoke(app, ["compare", str(tmp_path / "here"), str(tmp_path / "there")])
+    assert res.exit_code == 0 and "Computed on different machines" in res.output
+    assert "candidate: Other CPU, numpy X86_V3+X86_V4)" in res.output
+    res = runner.invoke(app, ["compare", str(tmp_path / "here"), str(tmp_path / "there"), "--format", "json"])
+    assert "Other CPU" in json.loads(res.output)["machines"]
+    assert "different machines" not in runner.invoke(app, ["compare", str(tmp_path / "here"), str(tmp_path / "same")]).output
+    del doc["machine"]
+    manifest.write_text(json.dumps(doc))
+    assert "different machines" not in runner.invoke(app, ["compare", str(tmp_path / "here"), str(tmp_path / "there")]).output
+
+
 def test_a_reference_older_than_an_option_still_pairs(tmp_path):
     """A reference written before an option existed (absent there, at its default now) pairs with a new run;
     a different value of the same option does not."""

@@ -293,6 +293,25 @@ def load_claims(dirs: dict[str, Path]) -> dict[tuple[str, str], bool]:
     return out
 
 
+def machines(dirs: dict[str, Path]) -> set[str]:
+    """The CPUs (with numpy's SIMD level) the manifests say the results were computed on."""
+    out = set()
+    for d in dirs.values():
+        m = read_manifest(d).get("machine")
+        if isinstance(m, dict):
+            out.add(f"{m.get('cpu', '?')}, numpy {'+'.join(m.get('numpy_simd') or ['baseline'])}")
+    return out
+
+
+def machine_note(base: set[str], cand: set[str]) -> str:
+    """One line under the table when the two sides were computed on different hardware, else ''."""
+    if not base or not cand or base == cand:
+        return ""
+    return (f"Computed on different machines (baseline: {'; '.join(sorted(base))}; candidate: "
+            f"{'; '.join(sorted(cand))}): numpy and OpenBLAS choose their kernels by CPU, so values can differ in "
+            "the last digits without any change of code.")
+
+
 def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str], bool]) -> pd.DataFrame:
     """A row per claim (metric ``claim``, the text as signal, 1 = holds): ``worse`` when a claim that held no
     longer does, ``better`` the other way; ``missing``/``new`` as for cells."""
@@ -320,6 +339,7 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             table = pd.concat([table, claims], ignore_index=True) if len(table) else claims
             table = table.iloc[table["verdict"].map(SEVERITY).argsort(kind="stable")].reset_index(drop=True)
     require_pairs(table)
+    table.attrs["machine_note"] = machine_note(machines(bdirs), machines(cdirs))
     return table
 
 
@@ -416,5 +436,7 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         lines += ["", note]
     if not paired:
         lines += ["", UNPAIRED_NOTE]
+    if table.attrs.get("machine_note"):
+        lines += ["", table.attrs["machine_note"]]
     return "\n".join(lines) + "\n"
 
