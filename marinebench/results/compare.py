@@ -283,21 +283,21 @@ def require_pairs(table: pd.DataFrame) -> None:
                                "signal, metric) and no claim: are these the right directories?")
 
 
-def load_claims(dirs: dict[str, Path]) -> dict[tuple[str, str], bool]:
+def load_claims(manifests: dict[str, dict]) -> dict[tuple[str, str], bool]:
     """(experiment, claim text) -> holds, from the manifests (claims that could not be checked left out)."""
     out = {}
-    for name, d in dirs.items():
-        for c in read_manifest(d).get("claims", []):
+    for name, manifest in manifests.items():
+        for c in manifest.get("claims", []):
             if not c.get("not_checked"):
                 out[name, c["text"]] = bool(c["holds"])
     return out
 
 
-def machines(dirs: dict[str, Path]) -> set[str]:
+def machines(manifests: dict[str, dict]) -> set[str]:
     """The CPUs (with numpy's SIMD level) the manifests say the results were computed on."""
     out = set()
-    for d in dirs.values():
-        m = read_manifest(d).get("machine")
+    for manifest in manifests.values():
+        m = manifest.get("machine")
         if isinstance(m, dict):
             out.add(f"{m.get('cpu', '?')}, numpy {'+'.join(m.get('numpy_simd') or ['baseline'])}")
     return out
@@ -333,13 +333,14 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     bdirs, cdirs = find_results(baseline), find_results(candidate)
     check_compatible(bdirs, cdirs, paired)
     table = compare_frames(*select_metrics([load_metrics(bdirs), load_metrics(cdirs)], metrics), tol, paired=paired)
+    bman, cman = ({name: read_manifest(d) for name, d in dirs.items()} for dirs in (bdirs, cdirs))
     if metrics is None or "claim" in metrics:
-        claims = compare_claims(load_claims(bdirs), load_claims(cdirs))
+        claims = compare_claims(load_claims(bman), load_claims(cman))
         if len(claims):
             table = pd.concat([table, claims], ignore_index=True) if len(table) else claims
             table = table.iloc[table["verdict"].map(SEVERITY).argsort(kind="stable")].reset_index(drop=True)
     require_pairs(table)
-    table.attrs["machine_note"] = machine_note(machines(bdirs), machines(cdirs))
+    table.attrs["machine_note"] = machine_note(machines(bman), machines(cman))
     return table
 
 
