@@ -340,6 +340,9 @@ def test_design_prints_the_solved_gains_without_simulating():
     assert doc["proposed_d2.2"]["slowest_pole_p"] <= -2.2  # the LMI region: poles left of -delta_p1
     res = runner.invoke(app, ["design", config, "--set", "scenario.cdo.lmi_decay=-1"])
     assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.cdo.lmi_decay")
+    dp = json.loads(runner.invoke(app, ["design", str(ROOT / "configs" / "torben_fig1.yaml"), "--json"]).output)["torben_fig1"]
+    assert not any(key.endswith("L2") or "_L2_" in key for key in dp["npo"])  # the NPO runs L1 alone
+    assert max(dp["resetting"]["poles_L2_re"]) < min(dp["resetting"]["poles_L1_re"])  # L2 the more aggressive gain
 
 
 def test_validate_all_committed_configs_and_scenarios():

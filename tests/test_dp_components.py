@@ -122,6 +122,11 @@ def test_jump_rule_and_condition_check():
     assert cond[0] > 1e10 and not jumped[0]
     _, jumped_unchecked, _ = fto_jump(z1, z2, phi1, phi2_bad, big, k, eps, 1e10, ones, check=False)
     assert jumped_unchecked[0]
+    # per-run c_max and check (a sweep's runs differ): the same window end, refused only where checked
+    two = lambda a: np.concatenate([a, a])
+    zp, jumped, _ = fto_jump(two(z1), two(z2), two(phi1), two(phi2_bad), two(big), two(k), two(eps),
+                             np.array([1e10, 1e10]), ones, check=np.array([True, False]))
+    assert list(jumped) == [False, True] and np.array_equal(zp[0], z1[0]) and not np.array_equal(zp[1], z1[0])
 
 
 @pytest.mark.parametrize("dt", [0.05, 0.01])

@@ -190,13 +190,10 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
             out[v.name] = {"gains": gains, "mode": o.mode, **(noise_parts(exp.scenario, {"u": gains, "v": gains}) if o.mode == "linear" else {})}
         elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)
             obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
-            K1, K2, K3 = obs.classes[0]["K"]
-            out[v.name] = {
-                "K1_L1": K1[0].tolist(), "K2_L1": K2[0].tolist(), "K3_L1": K3[0].tolist(),
-                "K1_L2": K1[1].tolist(), "K2_L2": K2[1].tolist(), "K3_L2": K3[1].tolist(),
-                "poles_L1_re": sorted(np.round(obs.poles[0].real, 4).tolist()),
-                "poles_L2_re": sorted(np.round(obs.poles[1].real, 4).tolist()),
-            }
+            design = obs.classes[0]
+            used = (0,) if design["one_gain"] else (0, 1)  # the NPO runs L1 alone (L2 = L1)
+            out[v.name] = {f"K{j}_L{i + 1}": K[i].tolist() for i in used for j, K in enumerate(design["K"], start=1)}
+            out[v.name].update({f"poles_L{i + 1}_re": sorted(np.round(obs.poles[i].real, 4).tolist()) for i in used})
     return out
 
 

@@ -248,9 +248,7 @@ class DpObserver:
         innov = y - z1[:, 0:3]
         innov[:, 2] = wrap_angle(innov[:, 2])
         z1p, jumped, cond = fto_jump(z1, z2, S[ends, 0, :, :9], S[ends, 1, :, :9], innov, self.k[ends],
-                                     self.eps[ends], np.inf, self.jump_scale, check=False)
-        jumped &= (~self.check[ends]) | (cond <= self.c_max[ends])
-        z1p = np.where(jumped[:, None], z1p, z1)
+                                     self.eps[ends], self.c_max[ends], self.jump_scale, check=self.check[ends])
         S[ends, :, :, :9] = np.eye(9)
         S[ends, 0, :, 9] = z1p
         S[ends, 1, :, 9] = z1p

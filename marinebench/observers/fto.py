@@ -41,13 +41,15 @@ def fto_jump(
     innovation: np.ndarray,
     k: np.ndarray,
     eps: np.ndarray,
-    c_max: float,
+    c_max: float | np.ndarray,
     scale: np.ndarray,
-    check: bool = True,
+    check: bool | np.ndarray = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Jump map for a batch of window ends. Returns ``(z1_plus, jumped, cond)``.
 
-    Shapes: z (B, n), phi (B, n, n), innovation and eps (B, p), k (B,).
+    Shapes: z (B, n), phi (B, n, n), innovation and eps (B, p), k (B,); ``c_max`` and ``check`` a scalar or
+    one per run. ``cond`` is evaluated for every window end (the observer's diagnostics); ``z*`` is solved only
+    for the runs that jump, which at a sweep's window ends are few.
     """
     n = z1.shape[1]
     sc = scale[None, :]
@@ -57,15 +59,18 @@ def fto_jump(
         p2 = phi2 * scale[None, None, :] / scale[None, :, None]
         Ys = np.linalg.solve(np.swapaxes(p1, 1, 2), np.swapaxes(p2, 1, 2)).swapaxes(1, 2)  # Ys p1 = p2
         Xs = np.eye(n) - Ys
-        rhs = z2 / sc - np.einsum("bij,bj->bi", Ys, z1 / sc)
         cond = np.linalg.cond(Xs)
-        finite = np.isfinite(Xs).all(axis=(1, 2))
-        z_star = np.full_like(z1, np.nan)
-        ok = finite & (np.abs(np.linalg.det(Xs)) > 0) if finite.any() else finite
-        if ok.any():
-            z_star[ok] = np.linalg.solve(Xs[ok], rhs[ok][..., None])[..., 0] * sc
-    trigger = (np.abs(innovation) >= eps).any(axis=1) & ok
-    if check:
-        trigger &= cond <= c_max
-    z_plus = np.where(trigger[:, None], k[:, None] * z_star + (1 - k[:, None]) * z1, z1)
-    return z_plus, trigger, cond
+        jumped = (np.abs(innovation) >= eps).any(axis=1) & np.isfinite(Xs).all(axis=(1, 2))
+        jumped &= ~np.asarray(check) | (cond <= c_max)
+        j = np.flatnonzero(jumped)
+        if j.size:
+            nonsingular = np.abs(np.linalg.det(Xs[j])) > 0
+            jumped[j[~nonsingular]] = False
+            j = j[nonsingular]
+        z_plus = z1.copy()
+        if j.size:
+            rhs = z2[j] / sc - np.einsum("bij,bj->bi", Ys[j], z1[j] / sc)
+            z_star = np.linalg.solve(Xs[j], rhs[..., None])[..., 0] * sc
+            kj = k[j, None]
+            z_plus[j] = kj * z_star + (1 - kj) * z1[j]
+    return z_plus, jumped, cond
