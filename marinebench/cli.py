@@ -507,7 +507,7 @@ def compare(
         text = to_markdown(table, all_cells=all_cells, paired=not unpaired)
     elif fmt is Format.json:
         text = json.dumps({"summary": headline(table), "paired": not unpaired,
-                           "machines": table.attrs.get("machine_note", ""),
+                           "machines": table.attrs.get("machine_note", ""), "renamed": table.attrs.get("renamed", ""),
                            "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
     else:
         text = table.to_csv(index=False)

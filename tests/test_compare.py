@@ -389,6 +389,23 @@ def test_other_root_seeds_are_refused_paired_and_compared_unpaired(tmp_path):
     assert res.exit_code == 2 and "scenario.horizon" in res.output and ": seed" not in res.output, res.output
 
 
+def test_a_sweep_at_another_root_seed_is_compared_under_its_tagged_name(tmp_path, base_values):
+    """``sweep ... --seed 7`` names its experiment exp_seed=7 so that it does not replace the committed sweep;
+    the two directories are still one experiment: compared as such (and said so), paired refused for the seed,
+    and an unrelated name not paired at all."""
+    write_result(tmp_path / "base", "exp", base_values, root_seed=2024)
+    write_result(tmp_path / "cand", "exp_seed=7", base_values, root_seed=7)
+    write_result(tmp_path / "unrelated", "expo", base_values, root_seed=7)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base" / "exp"), str(tmp_path / "cand" / "exp_seed=7"),
+                              "--unpaired"])
+    assert res.exit_code == 0 and res.output.startswith("### marinebench compare: 0 worse, 0 better, 4 same")
+    assert "Compared as one experiment: 'exp_seed=7' (candidate) as 'exp' (baseline)." in res.output
+    paired = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert paired.exit_code == 2 and ": seed (other root seeds are not pairs" in paired.output
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "unrelated"), "--unpaired"])
+    assert res.exit_code == 2 and "no cell in common" in res.output
+
+
 def test_unpaired_counts_a_larger_share_of_diverged_runs_as_worse(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values, status={("a", "u", 0): "diverged"})
     write_result(tmp_path / "same", "exp", base_values, status={("a", "u", 5): "diverged"}, root_seed=2)

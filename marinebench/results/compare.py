@@ -331,8 +331,18 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
     most severe first."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
+    bframe, cframe = load_metrics(bdirs), load_metrics(cdirs)
+    renamed = ""
+    if len(bdirs) == len(cdirs) == 1:
+        (name,), (other,) = bdirs, cdirs
+        if other.startswith(f"{name}_") or name.startswith(f"{other}_"):
+            # Two result directories of one experiment whose names differ by the tags a sweep appends for its
+            # command-line overrides (``sweep k delta eps --seed 7`` writes torben_fig3_sweep_seed=7): compared
+            # as one. check_compatible still refuses another world; a line under the table names both.
+            cdirs, cframe["experiment"] = {name: cdirs[other]}, name
+            renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline)."
     check_compatible(bdirs, cdirs, paired)
-    table = compare_frames(*select_metrics([load_metrics(bdirs), load_metrics(cdirs)], metrics), tol, paired=paired)
+    table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired)
     bman, cman = ({name: read_manifest(d) for name, d in dirs.items()} for dirs in (bdirs, cdirs))
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bman), load_claims(cman))
@@ -341,6 +351,7 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             table = table.iloc[table["verdict"].map(SEVERITY).argsort(kind="stable")].reset_index(drop=True)
     require_pairs(table)
     table.attrs["machine_note"] = machine_note(machines(bman), machines(cman))
+    table.attrs["renamed"] = renamed
     return table
 
 
@@ -437,7 +448,8 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         lines += ["", note]
     if not paired:
         lines += ["", UNPAIRED_NOTE]
-    if table.attrs.get("machine_note"):
-        lines += ["", table.attrs["machine_note"]]
+    for note in ("renamed", "machine_note"):
+        if table.attrs.get(note):
+            lines += ["", table.attrs[note]]
     return "\n".join(lines) + "\n"
 
