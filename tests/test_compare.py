@@ -406,6 +406,21 @@ def test_a_sweep_at_another_root_seed_is_compared_under_its_tagged_name(tmp_path
     assert res.exit_code == 2 and "no cell in common" in res.output
 
 
+def test_unpaired_single_runs_call_no_change(tmp_path, base_values):
+    """One run per side on other seeds (a 1-seed sweep rerun at --seed 7): no interval exists and the noise alone
+    moves a cell by more than the tolerance, so unpaired nothing is called worse or better, and a line says why.
+    Paired (the same seed), one run is deterministic and the tolerance decides."""
+    cand = {cell: v * 1.3 for cell, v in base_values.items()}
+    write_result(tmp_path / "base", "exp", base_values, seeds=1, root_seed=2024)
+    write_result(tmp_path / "cand", "exp", cand, seeds=1, root_seed=7)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--unpaired"])
+    assert res.exit_code == 0 and res.output.startswith("### marinebench compare: 0 worse, 0 better, 4 same")
+    assert "4 cell(s) have a single run on a side" in res.output
+    write_result(tmp_path / "same_seed", "exp", cand, seeds=1, root_seed=2024)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "same_seed")])
+    assert res.exit_code == 1 and res.output.startswith("### marinebench compare: 4 worse")
+
+
 def test_unpaired_counts_a_larger_share_of_diverged_runs_as_worse(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values, status={("a", "u", 0): "diverged"})
     write_result(tmp_path / "same", "exp", base_values, status={("a", "u", 5): "diverged"}, root_seed=2)

@@ -259,7 +259,10 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
             rel_lo, rel_hi = (lo / abs(bm), hi / abs(bm)) if bm else (np.nan, np.nan)
         sign = -1.0 if row["metric"] in HIGHER_IS_BETTER else 1.0
         within = abs(change) <= tol.atol + tol.rtol * abs(bm)
-        significant = min(bv.size, cv.size) < 2 or not (lo <= 0.0 <= hi)
+        if min(bv.size, cv.size) < 2:  # no interval: paired, the same seeds, so the tolerance decides; unpaired,
+            significant = paired      # one fresh run cannot tell a change from the noise
+        else:
+            significant = not (lo <= 0.0 <= hi)
         if newly_diverged:
             verdict = "worse"
         elif within or not significant or np.isnan(change):
@@ -448,8 +451,13 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
         lines += ["", note]
     if not paired:
         lines += ["", UNPAIRED_NOTE]
-    for note in ("renamed", "machine_note"):
-        if table.attrs.get(note):
-            lines += ["", table.attrs[note]]
+        single = int(((table[["n", "n_candidate"]].min(axis=1) == 1) & (table["metric"] != "claim")).sum())
+        if single:
+            note = (f"{single} cell(s) have a single run on a side: unpaired, one run cannot tell a change from the "
+                    "noise, so they count as same (run 2 or more --seeds).")
+            lines += ["", note]
+    for attr in ("renamed", "machine_note"):
+        if table.attrs.get(attr):
+            lines += ["", table.attrs[attr]]
     return "\n".join(lines) + "\n"
 
