@@ -390,19 +390,21 @@ def test_other_root_seeds_are_refused_paired_and_compared_unpaired(tmp_path):
 
 
 def test_a_sweep_at_another_root_seed_is_compared_under_its_tagged_name(tmp_path, base_values):
-    """``sweep ... --seed 7`` names its experiment exp_seed=7 so that it does not replace the committed sweep;
-    the two directories are still one experiment: compared as such (and said so), paired refused for the seed,
-    and an unrelated name not paired at all."""
-    write_result(tmp_path / "base", "exp", base_values, root_seed=2024)
-    write_result(tmp_path / "cand", "exp_seed=7", base_values, root_seed=7)
-    write_result(tmp_path / "unrelated", "expo", base_values, root_seed=7)
-    res = runner.invoke(app, ["compare", str(tmp_path / "base" / "exp"), str(tmp_path / "cand" / "exp_seed=7"),
-                              "--unpaired"])
+    """``sweep ... --seed 7 --seeds 5`` names its experiment exp_sweep_seed=7_5seeds so that it does not replace
+    the committed exp_sweep_5seeds; results of one config are still one experiment: compared as such (and said
+    so), paired refused for the seed; another config's results are not paired at all."""
+    dirs = {"base": ("exp_sweep_5seeds", "exp.yaml", 2024), "cand": ("exp_sweep_seed=7_5seeds", "exp.yaml", 7),
+            "unrelated": ("other_sweep_5seeds", "other.yaml", 7)}
+    for side, (name, config, seed) in dirs.items():
+        d = write_result(tmp_path / side, name, base_values, root_seed=seed)
+        (d / "manifest.json").write_text(json.dumps({"config_files": {"experiment": f"configs/{config}"}}))
+    base, cand = tmp_path / "base" / "exp_sweep_5seeds", tmp_path / "cand" / "exp_sweep_seed=7_5seeds"
+    res = runner.invoke(app, ["compare", str(base), str(cand), "--unpaired"])
     assert res.exit_code == 0 and res.output.startswith("### marinebench compare: 0 worse, 0 better, 4 same")
-    assert "Compared as one experiment: 'exp_seed=7' (candidate) as 'exp' (baseline)." in res.output
-    paired = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert "Compared as one experiment: 'exp_sweep_seed=7_5seeds' (candidate) as 'exp_sweep_5seeds'" in res.output
+    paired = runner.invoke(app, ["compare", str(base), str(cand)])
     assert paired.exit_code == 2 and ": seed (other root seeds are not pairs" in paired.output
-    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "unrelated"), "--unpaired"])
+    res = runner.invoke(app, ["compare", str(base), str(tmp_path / "unrelated"), "--unpaired"])
     assert res.exit_code == 2 and "no cell in common" in res.output
 
 

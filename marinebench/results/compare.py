@@ -329,24 +329,32 @@ def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str]
     return pd.DataFrame(rows, columns=KEYS + COLUMNS)
 
 
+def _config_name(manifest: dict) -> str | None:
+    """The file name of the experiment config a result was run from (its manifest's ``config_files``)."""
+    files = manifest.get("config_files")
+    path = files.get("experiment") if isinstance(files, dict) else None
+    return Path(path).name if isinstance(path, str) else None
+
+
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
                  paired: bool = True) -> pd.DataFrame:
     """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
     most severe first."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
+    bman, cman = ({name: read_manifest(d) for name, d in dirs.items()} for dirs in (bdirs, cdirs))
     bframe, cframe = load_metrics(bdirs), load_metrics(cdirs)
     renamed = ""
-    if len(bdirs) == len(cdirs) == 1:
+    if len(bdirs) == len(cdirs) == 1 and bdirs.keys() != cdirs.keys():
         (name,), (other,) = bdirs, cdirs
-        if other.startswith(f"{name}_") or name.startswith(f"{other}_"):
-            # Two result directories of one experiment whose names differ by the tags a sweep appends for its
-            # command-line overrides (``sweep k delta eps --seed 7`` writes torben_fig3_sweep_seed=7): compared
-            # as one. check_compatible still refuses another world; a line under the table names both.
-            cdirs, cframe["experiment"] = {name: cdirs[other]}, name
-            renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline)."
+        if _config_name(bman[name]) is not None and _config_name(bman[name]) == _config_name(cman[other]):
+            # One config's results under two names: a sweep is named for its command-line overrides and seeds
+            # (``sweep k delta eps --seed 7 --seeds 5`` writes torben_fig3_sweep_seed=7_5seeds, beside the
+            # committed torben_fig3_sweep_5seeds). Compared as one experiment; check_compatible still refuses
+            # another world, cells pair only by variant, and a line under the table names both.
+            cdirs, cman, cframe["experiment"] = {name: cdirs[other]}, {name: cman[other]}, name
+            renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline), results of one config."
     check_compatible(bdirs, cdirs, paired)
     table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired)
-    bman, cman = ({name: read_manifest(d) for name, d in dirs.items()} for dirs in (bdirs, cdirs))
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bman), load_claims(cman))
         if len(claims):
