@@ -347,69 +347,97 @@ def _user_code(file: Path, key: str) -> Iterator[None]:
 
 
 def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
-    from marinebench.errors import DesignError, StiffnessError
+    """Preflight of one scenario's variants (``key`` is where the scenario sits, ``positions`` the variants'
+    indices in the file): each variant's controller or observer, the CDO designs, the metrics' signals, the step."""
+    from marinebench.errors import StiffnessError
+    from marinebench.sim.engine import check_step
+
+    groups = [g for i, v in zip(positions, exp.variants) if (g := _preflight_variant(exp, file, i, v)) is not None]
+    if exp.scenario.kind == "rov_tracking":
+        _preflight_cdo(exp, file, key, positions)
+    _preflight_metrics(exp, file, groups)
+    if exp.engine.check_step:
+        try:
+            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
+        except StiffnessError as exc:
+            raise ConfigError(file, f"{key}.dt", str(exc)) from None
+
+
+def _preflight_variant(exp: Experiment, file: Path, i: int, v):
+    """Check variant ``i``: its per-run world keys, that it has what its scenario needs (a controller in a
+    closed loop, an applicable observer otherwise), and that its design solves. Returns the observer's group
+    for the step check, or None for a controller."""
+    from marinebench.errors import DesignError
     from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of, wants_lumped
-    from marinebench.sim.engine import ObserverGroup, check_step
+    from marinebench.sim.engine import ObserverGroup
 
-    plant = plant_of(exp.scenario)
-    groups = []
-    allowed = getattr(exp.scenario, "PER_RUN", ())
+    unknown = set(v.world) - set(allowed := getattr(exp.scenario, "PER_RUN", ()))
+    if unknown:
+        raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
     closed_loop = exp.scenario.kind == "rov_tracking"
-    for i, v in zip(positions, exp.variants):
-        unknown = set(v.world) - set(allowed)
-        if unknown:
-            raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
-        if closed_loop != (v.controller is not None):
-            need = "a 'controller'" if closed_loop else "an 'observer'"
-            raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
-        if closed_loop:
-            if v.controller.kind == "custom":
-                with _user_code(file, f"variants.{i}.controller.params"):  # its constructor refusing its params
-                    built = v.controller.build(1)
-                with _user_code(file, f"variants.{i}.controller.source"):
-                    check_controller(built, exp.scenario.control_period)
-            continue
-        if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
-            raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
-                              f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
-        if v.observer.kind == "custom" and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
-            raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
-                              f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
-        try:
-            groups.append(ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0]))
-        except DesignError as exc:
-            raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
-        except Exception as exc:  # a custom observer's constructor refusing its params
-            if v.observer.kind != "custom":
-                raise
-            raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
-        if v.observer.kind == "custom":
-            with _user_code(file, f"variants.{i}.observer.source"):
-                check_observer(groups[-1].observer, 1)
-    from marinebench.rov_scenario import ROV_SIGNALS
-
+    if closed_loop != (v.controller is not None):
+        need = "a 'controller'" if closed_loop else "an 'observer'"
+        raise ConfigError(file, f"variants.{i}", f"scenario kind {exp.scenario.kind} needs {need} in every variant")
     if closed_loop:
+        if v.controller.kind == "custom":
+            with _user_code(file, f"variants.{i}.controller.params"):  # its constructor refusing its params
+                built = v.controller.build(1)
+            with _user_code(file, f"variants.{i}.controller.source"):
+                check_controller(built, exp.scenario.control_period)
+        return None
+    if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
+        raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
+                          f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
+    custom = v.observer.kind == "custom"
+    if custom and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
+        raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
+                          f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
+    try:
+        group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant_of(exp.scenario),
+                                            wants_lumped(exp)), [0])
+    except DesignError as exc:
+        raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+    except Exception as exc:  # a custom observer's constructor refusing its params
+        if not custom:
+            raise
+        raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
+    if custom:
+        with _user_code(file, f"variants.{i}.observer.source"):
+            check_observer(group.observer, 1)
+    return group
+
+
+def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
+    """Solve the scenario's CDO design (LMIs (39)-(40)) and each distinct per-variant CDO override's."""
+    from marinebench.errors import DesignError
+
+    try:
+        exp.scenario.cdo_design()
+    except DesignError as exc:
+        raise ConfigError(file, f"{key}.cdo", str(exc)) from None
+    checked = set()
+    for i, v in zip(positions, exp.variants):
+        if v.observer is None or not v.observer.cdo:
+            continue
+        cdo = v.observer.resolve(exp.scenario)[0]
+        if (fingerprint := cdo.model_dump_json()) in checked:
+            continue
         try:
-            exp.scenario.cdo_design()
+            exp.scenario.cdo_design(cdo)
         except DesignError as exc:
-            raise ConfigError(file, f"{key}.cdo", str(exc)) from None
-        checked = set()
-        for i, v in zip(positions, exp.variants):
-            if v.observer is not None and v.observer.cdo:
-                cdo = v.observer.resolve(exp.scenario)[0]
-                if cdo.model_dump_json() not in checked:
-                    try:
-                        exp.scenario.cdo_design(cdo)
-                    except DesignError as exc:
-                        raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
-                    checked.add(cdo.model_dump_json())
+            raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
+        checked.add(fingerprint)
+
+
+def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
+    """Every metric's signals are ones the variants' observers estimate and the world has a truth of."""
+    from marinebench.rov_scenario import ROV_SIGNALS
 
     signals = set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
     truth = TRUTH_SIGNALS.get(exp.scenario.kind)
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):
-            bad = set(m.signals) - signals
-            if bad:
+            if bad := set(m.signals) - signals:
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
             if truth is not None and set(m.signals) - set(truth):
                 raise ConfigError(file, f"metrics.{j}.signals", f"{sorted(set(m.signals) - set(truth))}: an "
@@ -417,11 +445,6 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
         if m.kind == "j_tot" and not set(DP_SIGNALS) <= signals:
             raise ConfigError(file, f"metrics.{j}", "j_tot needs the DP state estimates (pose, bias, velocity), "
                               "which no variant's observer produces (npo and resetting_fto do)")
-    if exp.engine.check_step:
-        try:
-            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
-        except StiffnessError as exc:
-            raise ConfigError(file, f"{key}.dt", str(exc)) from None
 
 
 def load_scenario(path: str | Path):
