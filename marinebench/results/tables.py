@@ -71,6 +71,22 @@ def _shown(r: pd.Series, display) -> pd.Series:
     return r
 
 
+def _preamble(exp: Experiment, windows: str, where: str, paper) -> list[str]:
+    """The lines under a table's title: what 'ours' is (the metrics' windows, seeds, CI) and, when the table
+    carries the paper's values, that those columns are copied, not computed."""
+    lines = [f"Ours: {windows}. Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; {where}."]
+    if paper is not None:
+        units = getattr(paper, "units", None)
+        lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
+                     "not computed" + (" (paper units: " + "; ".join(f"{k}: {u}" for k, u in units.items()) + ")"
+                                       if units else "") + ".")
+    return lines
+
+
+def _grid(header: list[str]) -> list[str]:
+    return ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+
+
 def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """Multi-scenario layout (Tijjani Table III): a row per (metric, signal, scenario), a column per variant,
     each followed by the paper's value when given."""
@@ -82,33 +98,23 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     s = summary.set_index(["scenario", "variant", "signal", "metric"])
     header = ["index", "scenario"]
     for v in exp.variants:
-        header.append(f"{v.label or v.name} ours")
-        if paper is not None:
-            header.append(f"{v.label or v.name} paper")
+        header += [f"{v.label or v.name} ours"] + ([f"{v.label or v.name} paper"] if paper is not None else [])
+    windows = "; ".join(_window(exp.part(exp.scenario_names[0]), n) for n in names)
     lines = [f"## {spec.title if spec else exp.name}", ""]
-    lines.append("Ours: " + "; ".join(_window(exp.part(exp.scenario_names[0]), n) for n in names)
-                 + f". Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; root seed {exp.seed}; "
-                 "'–' where a variant does not run on a scenario.")
-    if paper is not None:
-        lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
-                     "not computed" + (" (paper units: " + "; ".join(f"{k}: {u}" for k, u in paper.units.items()) + ")"
-                                       if paper.units else "") + ".")
-    lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += _preamble(exp, windows, f"root seed {exp.seed}; '–' where a variant does not run on a scenario", paper)
+    lines += _grid(header)
     for name in names:
         for sig in signals:
             d = display.get(f"{name}/{sig}")
             label = f"{name} {sig}" + (f" [{d.unit}]" if d and d.unit else "")
             for scen in exp.scenario_names:
-                row = [label, scen]
                 if not any((scen, v.name, sig, name) in s.index for v in exp.variants) and not any(
                         f"{scen}/{name}/{sig}" in vals for vals in (paper.values.values() if paper else [])):
                     continue  # the metric does not apply to this scenario (e.g. recovery without pushes)
+                row = [label, scen]
                 for v in exp.variants:
                     key = (scen, v.name, sig, name)
-                    if key in s.index:
-                        row.append(_cell(_shown(s.loc[key], d)))
-                    else:
-                        row.append("–")
+                    row.append(_cell(_shown(s.loc[key], d)) if key in s.index else "–")
                     if paper is not None:
                         row.append(fmt(paper.values.get(v.name, {}).get(f"{scen}/{name}/{sig}", float("nan"))))
                 lines.append("| " + " | ".join(row) + " |")
@@ -120,59 +126,56 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
 
 
 def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
+    """``table.md``: a row per variant, a column per (metric, signal) with the paper's value beside ours when the
+    table has one metric, and optionally a row of one variant's change relative to another (``table.relative``).
+    A multi-scenario experiment gets :func:`study_table`'s layout."""
     if exp.scenarios is not None:
         return study_table(exp, summary)
     spec = exp.table
     if spec is None:
-        first = exp.metrics[0]
-        names = [first.label]
-        signals = first.signals
-        spec_title, paper = f"{exp.name}: {first.label}", None
+        names, signals, title, paper, display = [exp.metrics[0].label], exp.metrics[0].signals, None, None, {}
     else:
-        names, spec_title, signals, paper = spec.metrics or [spec.metric], spec.title, spec.signals, spec.paper
+        names, signals, title, paper, display = spec.metrics or [spec.metric], spec.signals, spec.title, spec.paper, spec.display
     s = summary.set_index(["variant", "signal", "metric"])
     multi = len(names) > 1
-    display = spec.display if spec is not None else {}
+    side_by_side = paper is not None and not multi  # the paper's column beside each of ours
+    columns = [(name, sig) for name in names for sig in signals]
+
     header = ["variant"]
-    for name in names:
-        for sig in signals:
-            d = display.get(f"{name}/{sig}")
-            label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
-            header.append(f"{name} ({label})" if multi else f"{label} ours")
-            if paper is not None and not multi:
-                header.append(f"{label} paper")
-    lines = [f"## {spec_title}", ""]
-    lines.append(
-        "Ours: " + "; ".join(_window(exp, n) for n in names)
-        + f". Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; scenario "
-        f"`{exp.scenario.name}`, root seed {exp.seed}."
-    )
-    if paper is not None:
-        lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, not computed.")
-    lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for v in exp.variants:
-        row = [v.name]
-        for name in names:
-            for sig in signals:
-                if (v.name, sig, name) in s.index:
-                    cell = _cell(_shown(s.loc[(v.name, sig, name)], display.get(f"{name}/{sig}")))
-                else:
-                    cell = "n/a"
-                row.append(cell)
-                if paper is not None and not multi:
-                    row.append(fmt(paper.values.get(v.name, {}).get(sig, float("nan"))))
-        lines.append("| " + " | ".join(row) + " |")
+    for name, sig in columns:
+        d = display.get(f"{name}/{sig}")
+        label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
+        header += [f"{name} ({label})" if multi else f"{label} ours"] + ([f"{label} paper"] if side_by_side else [])
+    lines = [f"## {title or f'{exp.name}: {names[0]}'}", ""]
+    lines += _preamble(exp, "; ".join(_window(exp, n) for n in names),
+                       f"scenario `{exp.scenario.name}`, root seed {exp.seed}", paper)
+    lines += _grid(header)
+
+    def row(label: str, cell, paper_key: str) -> str:
+        cells = [label]
+        for name, sig in columns:
+            cells.append(cell(name, sig))
+            if side_by_side:
+                cells.append(fmt(paper.values.get(paper_key, {}).get(sig, float("nan"))))
+        return "| " + " | ".join(cells) + " |"
+
+    def ours(variant: str):
+        def cell(name, sig):
+            key = (variant, sig, name)
+            return _cell(_shown(s.loc[key], display.get(f"{name}/{sig}"))) if key in s.index else "n/a"
+        return cell
+
+    lines += [row(v.name, ours(v.name), v.name) for v in exp.variants]
     if spec is not None and spec.relative is not None:
         a, b = spec.relative
-        row = [f"{a} vs {b} [%]"]
-        for name in names:
-            for sig in signals:
-                ok = (a, sig, name) in s.index and (b, sig, name) in s.index
-                change = 100 * (s.loc[(a, sig, name), "mean"] / s.loc[(b, sig, name), "mean"] - 1) if ok else float("nan")
-                row.append("–" if math.isnan(change) else f"{change:+.1f}")
-                if paper is not None and not multi:
-                    row.append(fmt(paper.values.get(f"{a}_vs_{b}", {}).get(sig, float("nan"))))
-        lines.append("| " + " | ".join(row) + " |")
+
+        def change(name, sig):
+            if (a, sig, name) not in s.index or (b, sig, name) not in s.index:
+                return "–"
+            pct = 100 * (s.loc[(a, sig, name), "mean"] / s.loc[(b, sig, name), "mean"] - 1)
+            return "–" if math.isnan(pct) else f"{pct:+.1f}"
+
+        lines.append(row(f"{a} vs {b} [%]", change, f"{a}_vs_{b}"))
     lines += ["", "Variants:", ""]
     for v in exp.variants:
         lines.append(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer) if t is not None))
