@@ -92,6 +92,24 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
         raise ConfigError(file, "sweep", "this config has no 'sweep' section")
     name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides, grid)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
+    groups = _checked_request(spec, params, groups, grid, file)
+    base = next(v for v in exp.variants if v.name == spec.variant)
+    n = n or (GRID_N if grid else spec.n)
+    variants = [v for axes in ([params] if grid else [[p] for p in params])
+                for v in _points(spec, base, axes, groups, n, file)]
+    if horizon is not None:
+        try:
+            exp.check_windows(horizon)
+        except ValueError as exc:
+            raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
+    scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
+    return exp.model_copy(update={"variants": variants, "figures": [], "table": None, "sweep": None, "name": name,
+                                  "scenario": scenario})
+
+
+def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path) -> list[str]:
+    """The command line's parameters and world groups checked against the config's sweep section; the groups
+    to run (default: all of the config's)."""
     unknown = [p for p in params if p not in spec.params]
     if unknown:
         near = did_you_mean(list(dict.fromkeys(m for p in unknown for m in near_misses(p, sorted(spec.params)))))
@@ -105,46 +123,40 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     bad = [g for g in groups if g not in spec.groups]
     if bad:
         raise ConfigError(file, "sweep.groups", f"unknown group(s) {bad}; available: {sorted(spec.groups)}")
-    base = next(v for v in exp.variants if v.name == spec.variant)
-    n = n or (GRID_N if grid else spec.n)
+    return groups
+
+
+def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], n: int, file: Path) -> list[Variant]:
+    """The variants of one sweep axis (one parameter) or of a grid (two): ``base``'s settings with each swept
+    parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group."""
+    settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
+    for p in axes:
+        ps = spec.params[p]
+        if _get(settings, _path(ps.key)) is _MISSING:
+            raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
+                              f"(an observer field, or a path under observer. or controller.)")
+        for key, value in ps.fixed.items():
+            _set(settings, _path(key), value)
+    grids = [spec.params[p].values(n) for p in axes]
     variants = []
-    for axes in [params] if grid else [[p] for p in params]:
-        settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
-        for p in axes:
-            ps = spec.params[p]
-            if _get(settings, _path(ps.key)) is _MISSING:
-                raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
-                                  f"(an observer field, or a path under observer. or controller.)")
-            for key, value in ps.fixed.items():
-                _set(settings, _path(key), value)
-        grids = [spec.params[p].values(n) for p in axes]
-        for index in itertools.product(*(range(n) for _ in axes)):
-            values = [float(points[i]) for points, i in zip(grids, index)]
-            point = copy.deepcopy(settings)
-            for p, value in zip(axes, values):
-                _set(point, _path(spec.params[p].key), value)
-            tags = {"param": axes[0], "param_value": values[0]}
-            if grid:
-                tags |= {"param2": axes[1], "param2_value": values[1]}
-            for g in groups:
-                try:
-                    variants.append(Variant.model_validate({
-                        **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
-                        "world": spec.groups[g], "tags": tags | {"gnss": g}}))
-                except ValidationError as exc:
-                    at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
-                    raise ConfigError(file, f"sweep.params.{axes[-1] if len(axes) == 1 else ','.join(axes)}",
-                                      f"{at}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
-    update = {"variants": variants, "figures": [], "table": None, "sweep": None,
-              "name": name}
-    if horizon is not None:
-        try:
-            exp.check_windows(horizon)
-        except ValueError as exc:
-            raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
-    scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
-    update["scenario"] = scenario
-    return exp.model_copy(update=update)
+    for index in itertools.product(*(range(n) for _ in axes)):
+        values = [float(points[i]) for points, i in zip(grids, index)]
+        point = copy.deepcopy(settings)
+        for p, value in zip(axes, values):
+            _set(point, _path(spec.params[p].key), value)
+        tags = {"param": axes[0], "param_value": values[0]}
+        if len(axes) == 2:
+            tags |= {"param2": axes[1], "param2_value": values[1]}
+        for g in groups:
+            try:
+                variants.append(Variant.model_validate({
+                    **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
+                    "world": spec.groups[g], "tags": tags | {"gnss": g}}))
+            except ValidationError as exc:
+                at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
+                raise ConfigError(file, f"sweep.params.{axes[-1] if len(axes) == 1 else ','.join(axes)}",
+                                  f"{at}: {exc.errors()[0]['msg'].removeprefix('Value error, ')}") from None
+    return variants
 
 
 _MISSING = object()
