@@ -234,46 +234,64 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
             continue
         lines.append(f"| {p} | {g} | {sig} | {len(m)} | {m.min():.4g} | {m.idxmin():.4g} | {m.max():.4g} | "
                      f"{m.idxmax():.4g} | {diverged} |")
-    if spec is None:
-        return "\n".join(lines) + "\n"
-    probe_rows, trend_rows = [], []
+    if spec is not None:
+        lines += _probe_section(curves, spec, metric, group) + _trend_section(curves, spec, group) + _groups_section(curves)
+    return "\n".join(lines) + "\n"
+
+
+def _probe_section(curves: Curves, spec: SweepSpec, metric: str, group: str) -> list[str]:
+    """The KPI at each parameter's probe values, and its change against the first probe (paired over seeds)."""
+    rows = []
     for (p, g, sig), c in curves.items():
         ps = spec.params.get(p)
-        if ps is None:
+        if ps is None or not ps.probes:
             continue
         log = ps.spacing == "log"
-        if ps.probes:
-            first = _at(c, ps.probes[0], log)
-            for v in ps.probes:
-                at = _at(c, v, log)
-                change = "–" if v == ps.probes[0] else _fmt(*mean_ci(at / first - 1), pct=True)
-                probe_rows.append(f"| {p} | {g} | {sig} | {v:g} | {_fmt(*mean_ci(at))} | {change} |")
-        if ps.trend is not None:
-            x = c.index.to_numpy(dtype=float)
-            inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
-            rho = f"{spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic:+.2f}" if inside.sum() > 2 else "–"
-            trend_rows.append(f"| {p} | {g} | {sig} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
-    if probe_rows:
-        lines += ["", f"### {metric} at the probe values", "",
-                  ("Interpolated between sweep points (in the log of the value for log spacing); the change is against "
-                   "the first probe, per seed, then averaged."), "",
-                  f"| param | {group} | signal | value | {metric} | change vs first probe |", "|---|---|---|---|---|---|",
-                  *probe_rows]
-    if trend_rows:
-        lines += ["", "### Trends", "", ("Spearman rank correlation of the mean curve with the value over the range "
-                  "(+1: grows monotonically)."), "", f"| param | {group} | signal | range | points | Spearman ρ |",
-                  "|---|---|---|---|---|---|", *trend_rows]
+        first = _at(c, ps.probes[0], log)
+        for v in ps.probes:
+            at = _at(c, v, log)
+            change = "–" if v == ps.probes[0] else _fmt(*mean_ci(at / first - 1), pct=True)
+            rows.append(f"| {p} | {g} | {sig} | {v:g} | {_fmt(*mean_ci(at))} | {change} |")
+    if not rows:
+        return []
+    return ["", f"### {metric} at the probe values", "",
+            ("Interpolated between sweep points (in the log of the value for log spacing); the change is against "
+             "the first probe, per seed, then averaged."), "",
+            f"| param | {group} | signal | value | {metric} | change vs first probe |", "|---|---|---|---|---|---|", *rows]
+
+
+def _trend_section(curves: Curves, spec: SweepSpec, group: str) -> list[str]:
+    """Spearman's rank correlation of the mean curve with the value over each parameter's ``trend`` range."""
+    rows = []
+    for (p, g, sig), c in curves.items():
+        ps = spec.params.get(p)
+        if ps is None or ps.trend is None:
+            continue
+        x = c.index.to_numpy(dtype=float)
+        inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
+        rho = f"{spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic:+.2f}" if inside.sum() > 2 else "–"
+        rows.append(f"| {p} | {g} | {sig} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
+    if not rows:
+        return []
+    return ["", "### Trends", "", ("Spearman rank correlation of the mean curve with the value over the range "
+            "(+1: grows monotonically)."), "", f"| param | {group} | signal | range | points | Spearman ρ |",
+            "|---|---|---|---|---|---|", *rows]
+
+
+def _groups_section(curves: Curves) -> list[str]:
+    """Each world group's mean curve over the first group's, point by point (when more than one group ran)."""
     groups = list(dict.fromkeys(g for _, g, _ in curves))
-    if len(groups) > 1:
-        lines += ["", "### Between groups", "", f"Ratio of the mean curves, point by point, against `{groups[0]}`.", "",
-                  "| param | signal | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|---|"]
-        for p, sig in dict.fromkeys((p, sig) for p, _, sig in curves):
-            for g in groups[1:]:
-                if (p, g, sig) in curves and (p, groups[0], sig) in curves:
-                    r = curves[p, g, sig].mean(axis=1) / curves[p, groups[0], sig].mean(axis=1)
-                    lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | "
-                                 f"{r.idxmax():.4g} |")
-    return "\n".join(lines) + "\n"
+    if len(groups) < 2:
+        return []
+    lines = ["", "### Between groups", "", f"Ratio of the mean curves, point by point, against `{groups[0]}`.", "",
+             "| param | signal | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|---|"]
+    for p, sig in dict.fromkeys((p, sig) for p, _, sig in curves):
+        for g in groups[1:]:
+            if (p, g, sig) in curves and (p, groups[0], sig) in curves:
+                r = curves[p, g, sig].mean(axis=1) / curves[p, groups[0], sig].mean(axis=1)
+                lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | "
+                             f"{r.idxmax():.4g} |")
+    return lines
 
 
 def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
