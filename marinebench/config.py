@@ -481,6 +481,20 @@ class Experiment(BaseModel):
             if start >= min(end, horizon):
                 raise ValueError(f"metrics.{i}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of {horizon:g} s")
 
+    def _check_table(self, names: list[str], kinds: list[str]) -> None:
+        """The table's metrics are the experiment's (or observer diagnostics); its ``relative`` pair and the
+        paper's values name variants (or the relative row, ``<a>_vs_<b>``)."""
+        for name in self.table.metrics or [self.table.metric]:
+            if name not in kinds and name not in DIAGNOSTICS:
+                raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
+        rel = self.table.relative
+        if rel is not None and not set(rel) <= set(names):
+            raise ValueError(f"table.relative: unknown variants {sorted(set(rel) - set(names))}")
+        if self.table.paper is not None:
+            unknown = set(self.table.paper.values) - set(names) - ({f"{rel[0]}_vs_{rel[1]}"} if rel else set())
+            if unknown:
+                raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
+
     def _check_single(self) -> Experiment:
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
@@ -494,16 +508,7 @@ class Experiment(BaseModel):
                 raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
         self.check_windows(self.scenario.horizon)
         if self.table is not None:
-            for name in self.table.metrics or [self.table.metric]:
-                if name not in kinds and name not in DIAGNOSTICS:
-                    raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
-            rel = self.table.relative
-            if rel is not None and not set(rel) <= set(names):
-                raise ValueError(f"table.relative: unknown variants {sorted(set(rel) - set(names))}")
-            if self.table.paper is not None:
-                unknown = set(self.table.paper.values) - set(names) - ({f"{rel[0]}_vs_{rel[1]}"} if rel else set())
-                if unknown:
-                    raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
+            self._check_table(names, kinds)
         if self.sweep is not None:
             if self.sweep.variant not in names:
                 raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
