@@ -13,6 +13,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from marinebench.batch import columns
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
 from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
 from marinebench.sensors.noise import Noise, NoiseBatch, NoNoise
@@ -109,12 +110,17 @@ class OpenLoopASV:
         B = len(seed_of_run)
         self.x0 = np.tile(np.array(scenario.initial.eta + scenario.initial.nu, dtype=float), (B, 1))
         self._zeros = np.zeros(B)
+        self._forces_t: float | None = None
 
     def forces(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Control tau and environmental tau_w at time t, each ``(B, 3)``."""
-        tau = np.stack([self.F_u(t), self._zeros, self.tau_r(t)], axis=1)
-        tau_w = np.stack([self.F_wu(t), self.F_wv(t), self.tau_wr(t)], axis=1)
-        return tau, tau_w
+        """Control tau and environmental tau_w at time t, each ``(B, 3)`` (not to be modified: the last time's
+        are kept, as the engine asks twice per step for the same t, the truth and RK4's first stage, and its
+        two mid-point stages)."""
+        if self._forces_t != t:
+            tau = columns(self.F_u(t), self._zeros, self.tau_r(t))
+            tau_w = columns(self.F_wu(t), self.F_wv(t), self.tau_wr(t))
+            self._forces_t, self._forces = t, (tau, tau_w)
+        return self._forces
 
     def measure(self, t: float, x: np.ndarray) -> np.ndarray:
         """y = eta + n (eq. 8), heading noiseless (Assumption 3)."""

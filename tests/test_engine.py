@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from marinebench.batch import columns
 from marinebench.errors import StiffnessError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
@@ -89,3 +90,26 @@ def test_diverged_runs_are_flagged_not_averaged(tiny_config):
     assert (other["status"] == "ok").all()
     s = r.summary[r.summary["variant"] == "liu_eps0.2"]
     assert (s["n"] == 0).all() and (s["n_diverged"] == 2).all()
+
+
+def test_columns_is_np_stack_bit_for_bit():
+    rng = np.random.default_rng(3)
+    cols = [rng.normal(size=7) * 10.0 ** rng.integers(-8, 8) for _ in range(4)]
+    got = columns(*cols)
+    assert got.flags.c_contiguous and got.dtype == np.float64
+    np.testing.assert_array_equal(got, np.stack(cols, axis=1))
+
+
+def test_open_loop_forces_kept_for_one_time_equal_fresh_ones():
+    """The world keeps the forces of the last time asked; asking again, after other times, gives the forces a
+    fresh world computes at that time."""
+    from marinebench.loading import load_scenario
+    from marinebench.scenario import OpenLoopASV
+
+    scenario, seeds = load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml"), np.array([0, 1, 1])
+    world = OpenLoopASV(scenario, 5, seeds)
+    for t in (0.0, 0.0, 1.25, 1.25, 2.5, 0.0):
+        got, want = world.forces(t), OpenLoopASV(scenario, 5, seeds).forces(t)
+        for a, b in zip(got, want):
+            np.testing.assert_array_equal(a, b)
+    assert np.any(world.forces(1.25)[0] != world.forces(0.0)[0])

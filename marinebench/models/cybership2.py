@@ -18,6 +18,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from marinebench.batch import columns
 from marinebench.models.supply import LinearDpParams
 
 
@@ -102,14 +103,14 @@ class CyberShip2:
         u, v, r = nu[:, 0], nu[:, 1], nu[:, 2]
         c13 = -(M[1, 1] * v + M[1, 2] * r)
         c23 = M[0, 0] * u
-        Cnu = np.stack([c13 * r, c23 * r, -c13 * u - c23 * v], axis=1)
+        Cnu = columns(c13 * r, c23 * r, -c13 * u - c23 * v)
         au, av, ar = np.abs(u), np.abs(v), np.abs(r)
         d11 = -p.X_u - p.X_uu * au - (p.X_uuu * u**2 if p.include_xuuu else 0.0)
         d22 = -p.Y_v - p.Y_vv * av - p.Y_rv * ar
         d23 = -p.Y_r - p.Y_vr * av - p.Y_rr * ar
         d32 = -p.N_v - p.N_vv * av - p.N_rv * ar
         d33 = -p.N_r - p.N_vr * av - p.N_rr * ar
-        Dnu = np.stack([d11 * u, d22 * v + d23 * r, d32 * v + d33 * r], axis=1)
+        Dnu = columns(d11 * u, d22 * v + d23 * r, d32 * v + d33 * r)
         return Cnu + Dnu
 
     def sigma(self, nu: np.ndarray, tau_w: np.ndarray) -> np.ndarray:
@@ -120,6 +121,6 @@ class CyberShip2:
         """Eq. (7): ``x_dot`` for state ``(B, 6)``, control ``tau`` and environment ``tau_w`` ``(B, 3)``."""
         psi, nu = x[:, 2], x[:, 3:]
         c, s = np.cos(psi), np.sin(psi)
-        eta_dot = np.stack([c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2]], axis=1)
+        eta_dot = columns(c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2])
         nu_dot = (tau + tau_w - self.coriolis_damping(nu)) @ self.Minv.T
         return np.concatenate([eta_dot, nu_dot], axis=1)

@@ -23,6 +23,8 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from marinebench.batch import columns
+
 
 class LeonardLikeParams(BaseModel):
     """Heave/yaw stand-in for the Leonard ROV (assumed values; see the module docstring)."""
@@ -64,8 +66,8 @@ class LeonardLike:
         p = self.p
         f_v = np.clip(tau[:, 0] / p.n_vertical, -p.thrust_max, p.thrust_max)
         f_h = np.clip(tau[:, 1] / (p.n_horizontal * p.yaw_lever), -p.thrust_max, p.thrust_max)
-        achieved = np.stack([p.n_vertical * f_v, p.n_horizontal * p.yaw_lever * f_h], axis=1)
-        return np.stack([f_v, f_h], axis=1), achieved
+        achieved = columns(p.n_vertical * f_v, p.n_horizontal * p.yaw_lever * f_h)
+        return columns(f_v, f_h), achieved
 
     def derivative(self, x: np.ndarray, tau: np.ndarray, f_ext: np.ndarray, scale_damping: float = 1.0,
                    net_buoyancy: float | None = None) -> np.ndarray:
@@ -81,4 +83,4 @@ class LeonardLike:
         m_z, i_r = self.inertia
         w_dot = (tau[:, 0] - dz - b + f_ext[:, 0]) / m_z
         r_dot = (tau[:, 1] - dr + f_ext[:, 1]) / i_r
-        return np.stack([w, r, w_dot, r_dot], axis=1)
+        return columns(w, r, w_dot, r_dot)

@@ -26,6 +26,8 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from marinebench.batch import columns
+
 M_BIS = ((1.1274, 0.0, 0.0), (0.0, 1.8902, -0.0744), (0.0, -0.0744, 0.1278))
 D_BIS = ((0.0358, 0.0, 0.0), (0.0, 0.1183, -0.0124), (0.0, -0.0041, 0.0308))
 
@@ -119,7 +121,7 @@ class SupplyVessel:
     def derivative(self, x: np.ndarray, tau: np.ndarray, tau_d: np.ndarray, b_dot: np.ndarray) -> np.ndarray:
         psi, nu, b = x[:, 2], x[:, 3:6], x[:, 6:9]
         c, s = np.cos(psi), np.sin(psi)
-        eta_dot = np.stack([c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2]], axis=1)
-        b_body = np.stack([c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1], b[:, 2]], axis=1)
+        eta_dot = columns(c * nu[:, 0] - s * nu[:, 1], s * nu[:, 0] + c * nu[:, 1], nu[:, 2])
+        b_body = columns(c * b[:, 0] + s * b[:, 1], -s * b[:, 0] + c * b[:, 1], b[:, 2])
         nu_dot = (tau + b_body + tau_d - nu @ self.D.T) @ self.Minv.T
         return np.concatenate([eta_dot, nu_dot, b_dot], axis=1)

@@ -13,6 +13,8 @@ from typing import Protocol
 
 import numpy as np
 
+from marinebench.batch import columns
+
 
 class BatchObserver(Protocol):
     """A batch of ``B`` observers of one kind (tunings may differ per run)."""
@@ -57,4 +59,4 @@ def rotate2(psi: np.ndarray, xy: np.ndarray, transpose: bool = False) -> np.ndar
     c, s = np.cos(psi), np.sin(psi)
     if transpose:
         s = -s
-    return np.stack([c * xy[:, 0] - s * xy[:, 1], s * xy[:, 0] + c * xy[:, 1]], axis=1)
+    return columns(c * xy[:, 0] - s * xy[:, 1], s * xy[:, 0] + c * xy[:, 1])

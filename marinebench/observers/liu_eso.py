@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from marinebench.batch import columns
 from marinebench.observers.base import wrap_angle
 
 
@@ -82,7 +83,7 @@ class LiuEsoObserver:
         g1, g2, g3 = self._corrections(e)
 
         def rot_t(w: np.ndarray) -> np.ndarray:  # R^T(psi) w
-            return np.stack([c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2]], axis=1)
+            return columns(c * w[:, 0] + s * w[:, 1], -s * w[:, 0] + c * w[:, 1], w[:, 2])
 
         nu = xhat[:, 3:6]
         d = np.empty_like(xhat)
