@@ -19,7 +19,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
-from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment
+from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment, Variant
 from marinebench.controllers.spec import check_built as check_controller
 from marinebench.errors import ConfigError
 from marinebench.keypaths import key_path, unknown_key_hint
@@ -363,7 +363,7 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"{key}.dt", str(exc)) from None
 
 
-def _preflight_variant(exp: Experiment, file: Path, i: int, v):
+def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant) -> Any:
     """Check variant ``i``: its per-run world keys, that it has what its scenario needs (a controller in a
     closed loop, an applicable observer otherwise), and that its design solves. Returns the observer's group
     for the step check, or None for a controller."""

@@ -288,3 +288,14 @@ def test_table_caption_says_what_each_error_is():
     assert "from the first time the tracking error is within 0.01 (depth), 0.0175 (yaw)" in _window(tracking.part("S1"), "int")
     mixed = observed.model_copy(update={"variants": [*observed.variants, tracking.variants[0]]})
     assert "for controllers without an observer: reference − actual" in _window(mixed, "rmse")
+
+
+def test_a_one_scenario_table_states_the_papers_units_like_a_study_table():
+    import pandas as pd
+
+    from marinebench.results.tables import markdown_table
+
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_observers.yaml",
+                             ["table.paper.units={rmse/depth_meas: '% of the EO'}"])
+    summary = pd.DataFrame([], columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
+    assert "(paper units: rmse/depth_meas: % of the EO)." in markdown_table(exp, summary)

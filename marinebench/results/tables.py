@@ -76,7 +76,7 @@ def _preamble(exp: Experiment, windows: str, where: str, paper) -> list[str]:
     carries the paper's values, that those columns are copied, not computed."""
     lines = [f"Ours: {windows}. Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; {where}."]
     if paper is not None:
-        units = getattr(paper, "units", None)
+        units = paper.units
         lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
                      "not computed" + (" (paper units: " + "; ".join(f"{k}: {u}" for k, u in units.items()) + ")"
                                        if units else "") + ".")
