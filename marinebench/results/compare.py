@@ -346,7 +346,7 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     renamed = ""
     if len(bdirs) == len(cdirs) == 1 and bdirs.keys() != cdirs.keys():
         (name,), (other,) = bdirs, cdirs
-        if _config_name(bman[name]) is not None and _config_name(bman[name]) == _config_name(cman[other]):
+        if (config := _config_name(bman[name])) is not None and config == _config_name(cman[other]):
             # One config's results under two names: a sweep is named for its command-line overrides and seeds
             # (``sweep k delta eps --seed 7 --seeds 5`` writes torben_fig3_sweep_seed=7_5seeds, beside the
             # committed torben_fig3_sweep_5seeds). Compared as one experiment; check_compatible still refuses
