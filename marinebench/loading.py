@@ -255,17 +255,23 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     doc = _deep_merge(base, doc)
     doc.setdefault("name", path.stem)
     if profile is not None:
-        profiles = doc.get("profiles") or {}
-        if profile not in profiles:
-            raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
-        for i, s in enumerate(profiles[profile]):  # written in the config file: errors name it
-            try:
-                origins["override " + apply_set(doc, s)] = path
-            except ConfigError as exc:
-                raise ConfigError(path, f"profiles.{profile}.{i}", f"{exc.key}: {exc.message}") from None
+        _apply_profile(doc, profile, path, origins)
     for s in sets:
         origins["--set " + apply_set(doc, s)] = Path("--set")
     return doc, origins
+
+
+def _apply_profile(doc: dict, profile: str, path: Path, origins: dict[str, Path]) -> None:
+    """Apply the ``dotted.key=value`` settings of the document's named profile (``--profile``); an error in one
+    names the file and ``profiles.<name>.<i>``, where it is written."""
+    profiles = doc.get("profiles") or {}
+    if profile not in profiles:
+        raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
+    for i, assignment in enumerate(profiles[profile]):
+        try:
+            origins["override " + apply_set(doc, assignment)] = path
+        except ConfigError as exc:
+            raise ConfigError(path, f"profiles.{profile}.{i}", f"{exc.key}: {exc.message}") from None
 
 
 def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], root: Any = Experiment) -> ConfigError:
