@@ -356,9 +356,11 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     """Preflight of one scenario's variants (``key`` is where the scenario sits, ``positions`` the variants'
     indices in the file): each variant's controller or observer, the CDO designs, the metrics' signals, the step."""
     from marinebench.errors import StiffnessError
+    from marinebench.experiments.runner import plant_of
     from marinebench.sim.engine import check_step
 
-    groups = [g for i, v in zip(positions, exp.variants) if (g := _preflight_variant(exp, file, i, v)) is not None]
+    plant = plant_of(exp.scenario)  # the model every variant's observer is designed on
+    groups = [g for i, v in zip(positions, exp.variants) if (g := _preflight_variant(exp, file, i, v, plant)) is not None]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
     _preflight_metrics(exp, file, groups)
@@ -369,12 +371,12 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"{key}.dt", str(exc)) from None
 
 
-def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant) -> Any:
+def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:
     """Check variant ``i``: its per-run world keys, that it has what its scenario needs (a controller in a
     closed loop, an applicable observer otherwise), and that its design solves. Returns the observer's group
     for the step check, or None for a controller."""
     from marinebench.errors import DesignError
-    from marinebench.experiments.runner import make_observer, observer_kinds_for, plant_of, wants_lumped
+    from marinebench.experiments.runner import make_observer, observer_kinds_for, wants_lumped
     from marinebench.sim.engine import ObserverGroup
 
     unknown = set(v.world) - set(allowed := getattr(exp.scenario, "PER_RUN", ()))
@@ -399,8 +401,7 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant) -> Any:
         raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
                           f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
     try:
-        group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant_of(exp.scenario),
-                                            wants_lumped(exp)), [0])
+        group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0])
     except DesignError as exc:
         raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
     except Exception as exc:  # a custom observer's constructor refusing its params

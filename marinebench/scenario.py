@@ -113,12 +113,13 @@ class OpenLoopASV:
         self._forces_t: float | None = None
 
     def forces(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Control tau and environmental tau_w at time t, each ``(B, 3)`` (not to be modified: the last time's
-        are kept, as the engine asks twice per step for the same t, the truth and RK4's first stage, and its
-        two mid-point stages)."""
+        """Control tau and environmental tau_w at time t, each ``(B, 3)`` and read-only: the last time's are kept,
+        as the engine asks twice per step for the same t (the truth and RK4's first stage; its two mid-point
+        stages)."""
         if self._forces_t != t:
             tau = columns(self.F_u(t), self._zeros, self.tau_r(t))
             tau_w = columns(self.F_wu(t), self.F_wv(t), self.tau_wr(t))
+            tau.flags.writeable = tau_w.flags.writeable = False  # kept for the next call: a write would corrupt it
             self._forces_t, self._forces = t, (tau, tau_w)
         return self._forces
 

@@ -113,3 +113,12 @@ def test_open_loop_forces_kept_for_one_time_equal_fresh_ones():
         for a, b in zip(got, want):
             np.testing.assert_array_equal(a, b)
     assert np.any(world.forces(1.25)[0] != world.forces(0.0)[0])
+
+
+def test_kept_forces_are_read_only():
+    from marinebench.loading import load_scenario
+    from marinebench.scenario import OpenLoopASV
+
+    tau, _ = OpenLoopASV(load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml"), 5, np.array([0])).forces(0.5)
+    with pytest.raises(ValueError, match="read-only"):
+        tau[0, 0] = 1.0
