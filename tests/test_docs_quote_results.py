@@ -1,0 +1,153 @@
+"""The README and docs quote the committed results; each quote here is recomputed from `results/*/metrics.csv`.
+
+A rerun that moves a committed number, or an edit of the prose that changes a quoted one, fails here and names the
+sentence to update. A quote is a literal piece of the document with ``{}`` where a number stands; each number must
+equal its recomputed value to the precision it is printed with (half a unit of its last digit).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from marinebench.metrics.stats import mean_ci
+
+ROOT = Path(__file__).resolve().parents[1]
+NUMBER = r"[−+-]?\d+(?:\.\d+)?(?:e[−+-]?\d+)?"
+
+
+@cache
+def _metrics(experiment: str) -> pd.DataFrame:
+    return pd.read_csv(ROOT / "results" / experiment / "metrics.csv")
+
+
+def values(experiment: str, variant: str, signal: str, metric: str, scenario: str | None = None) -> np.ndarray:
+    """One cell's values over the seeds of a committed experiment."""
+    m = _metrics(experiment)
+    sel = (m.variant == variant) & (m.signal == signal) & (m.metric == metric)
+    if scenario is not None:
+        sel &= m.scenario == scenario
+    v = m.loc[sel, "value"].to_numpy()
+    assert v.size, f"results/{experiment}: no cell {scenario}/{variant}/{signal}/{metric}"
+    return v
+
+
+def mean(*cell, scale: float = 1.0) -> float:
+    return float(values(*cell).mean()) * scale
+
+
+def change(a: tuple, b: tuple) -> float:
+    """a vs b in %, on the means (the tables' relative rows)."""
+    return 100 * (mean(*a) / mean(*b) - 1)
+
+
+def table_row(path: str, start: str) -> list[float]:
+    """The numbers of the row of a generated ``table.md`` that starts with ``start`` (those after it)."""
+    for line in (ROOT / "results" / path).read_text().splitlines():
+        if line.startswith(start):
+            return [float(x) for x in re.findall(NUMBER, line[len(start):])]
+    raise AssertionError(f"results/{path}: no row starting {start!r}")
+
+
+@dataclass(frozen=True)
+class Quote:
+    doc: str
+    text: str  # literal, with {} for each checked number
+    computed: Callable[[], list[float]]
+
+    def __str__(self) -> str:
+        return f"{self.doc}: {self.text}"
+
+
+T4 = "bejarano_table4"
+T3 = "tijjani_table3"
+OBS = "tijjani_observers"
+TUNED = "tijjani_tuned"
+cm, e2 = 100.0, 100.0  # metres -> cm; the docs' e-2 m / e-2 rad
+
+
+def _fig1() -> list[float]:
+    m, lo, hi = mean_ci(values("torben_fig1", "resetting", "z", "J_tot_transient"))
+    npo = mean("torben_fig1", "npo", "z", "J_tot_transient")
+    return [m, lo, hi, npo, 100 * (m / npo - 1)]
+
+
+def _tuned_yaw(scenario: str) -> list[float]:
+    variants = ("rise_tuned", "srise_tuned", "cdo_srise_tuned", "rise", "srise", "cdo_srise")
+    return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
+
+
+QUOTES = [
+    Quote("README.md", "velocity (e_u {} vs {}; paper 0.0713 vs 0.073)",
+          lambda: [mean(T4, "proposed_d2.2", "u", "std"), mean(T4, "liu_eps0.1", "u", "std")]),
+    Quote("README.md", "nor lower the velocity errors against δ = 1.2\n  ({})",
+          lambda: [mean(T4, "proposed_d1.2", "u", "std")]),
+    Quote("docs/bejarano.md", "against simulated e_u of {} / {} / {} / {}",
+          lambda: [mean(T4, v, "u", "std") for v in ("liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")]),
+    Quote("README.md", "J_tot_transient {} [{}, {}] resetting vs {} NPO ({} %", _fig1),
+    Quote("docs/torben.md", "J_tot_transient {} [{}, {}] resetting vs {}", lambda: _fig1()[:4]),
+    Quote("docs/torben.md", "vs J(c_ε = 5) is {} % [{}, {}] differential and {} % [{}, {}] dual-band",
+          lambda: [x for g in ("dgnss", "dualband")
+                   for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
+    Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
+          lambda: [x for g in ("dgnss", "dualband")
+                   for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
+    Quote("README.md", "(S1: {} > {} > {}\n  e-2 m; paper 1.22 > 0.72 > 0.35)",
+          lambda: [mean(T3, v, "depth", "rmse", "S1", scale=e2) for v in ("rise", "srise", "cdo_srise")]),
+    Quote("README.md", "S+RISE < RISE does not (S1 {} vs {} e-2 rad",
+          lambda: [mean(T3, v, "yaw", "rmse", "S1", scale=e2) for v in ("srise", "rise")]),
+    Quote("README.md", "(depth {} vs {} / {} N²s; yaw {} / {} / {} N²m²s)",
+          lambda: [mean(T3, v, s, "int", "S1") for s in ("depth", "yaw") for v in ("rise", "srise", "cdo_srise")]),
+    Quote("README.md", "RISE {} > S+RISE {} > CDO-S+RISE {} e-2 rad",
+          lambda: [mean(TUNED, f"{v}_tuned", "yaw", "rmse", "S1", scale=e2) for v in ("rise", "srise", "cdo_srise")]),
+    Quote("README.md", "S+RISE is still behind RISE\n  ({} vs {}; Table II's gains: {} vs {})",
+          lambda: [mean(TUNED, v, "yaw", "rmse", "S2-C2", scale=e2)
+                   for v in ("srise_tuned", "rise_tuned", "srise", "rise")]),
+    Quote("docs/tijjani.md", "| S1 | {} | {} | {} | {} / {} / {} |", lambda: _tuned_yaw("S1")),
+    Quote("docs/tijjani.md", "| S2-C2 | {} | **{}** | {} | {} / {} / {} |", lambda: _tuned_yaw("S2-C2")),
+    Quote("README.md", "Yaw INT {} / {} / {} N²m²s",
+          lambda: [mean(TUNED, f"{v}_tuned", "yaw", "int", "S1") for v in ("rise", "srise", "cdo_srise")]),
+    Quote("README.md", "(CDO {} % depth, {} % yaw;\n  paper −45 %, −25 %)",
+          lambda: [change((OBS, "cdo", s, "rmse"), (OBS, "eo", s, "rmse")) for s in ("depth", "yaw")]),
+    Quote("README.md", "(largest error over 0.1–2 s: {} vs {} cm, {} vs {} rad)",
+          lambda: [mean(OBS, "cdo", "depth", "peak_output", scale=cm), mean(OBS, "eo", "depth", "peak_output", scale=cm),
+                   mean(OBS, "cdo", "yaw", "peak_output"), mean(OBS, "eo", "yaw", "peak_output")]),
+]
+
+
+def quoted_numbers(quote: Quote) -> list[str]:
+    """The numbers standing at the quote's ``{}`` in its document (line breaks and indents as the text has them)."""
+    doc = (ROOT / quote.doc).read_text()
+    pattern = f"({NUMBER})".join(re.escape(part) for part in quote.text.split("{}"))
+    found = re.search(pattern, doc)
+    assert found, f"{quote}: not found in {quote.doc} (reworded? update the quote here)"
+    return list(found.groups())
+
+
+def agrees(printed: str, value: float) -> bool:
+    """``value`` rounds to ``printed`` (half a unit of its last digit; 4.1e3 has a unit of 100)."""
+    text = printed.replace("−", "-")
+    mantissa, _, exponent = text.partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    unit = 10.0 ** (int(exponent or 0) - decimals)
+    return abs(float(text) - value) <= unit / 2 * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("quote", QUOTES, ids=str)
+def test_the_docs_quote_the_committed_results(quote):
+    printed, computed = quoted_numbers(quote), quote.computed()
+    assert len(printed) == len(computed), f"{quote}: {len(printed)} numbers quoted, {len(computed)} computed"
+    wrong = [f"{p} (recomputed {c:.6g})" for p, c in zip(printed, computed) if not agrees(p, c)]
+    assert not wrong, f"{quote}: " + "; ".join(wrong)
+
+
+def test_a_misquoted_number_is_caught():
+    assert agrees("0.0783", 0.07834) and agrees("4.1e3", 4070.0) and agrees("−64", -63.6)
+    assert not agrees("0.0783", 0.07836) and not agrees("4.1e3", 4160.0) and not agrees("−64", -64.6)
