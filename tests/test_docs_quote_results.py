@@ -93,6 +93,9 @@ QUOTES = [
           lambda: [mean(T4, v, "u", "std") for v in ("liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")]),
     Quote("README.md", "J_tot_transient {} [{}, {}] resetting vs {} NPO ({} %", _fig1),
     Quote("docs/torben.md", "J_tot_transient {} [{}, {}] resetting vs {}", lambda: _fig1()[:4]),
+    Quote("README.md", "J_tot_steady {} vs {} (no steady-state penalty), {} jumps per run",
+          lambda: [mean("torben_fig1", "resetting", "z", "J_tot_steady"), mean("torben_fig1", "npo", "z", "J_tot_steady"),
+                   mean("torben_fig1", "resetting", "z", "n_jumps")]),
     Quote("docs/torben.md", "vs J(c_ε = 5) is {} % [{}, {}] differential and {} % [{}, {}] dual-band",
           lambda: [x for g in ("dgnss", "dualband")
                    for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
@@ -114,6 +117,8 @@ QUOTES = [
     Quote("docs/tijjani.md", "| S2-C2 | {} | **{}** | {} | {} / {} / {} |", lambda: _tuned_yaw("S2-C2")),
     Quote("README.md", "Yaw INT {} / {} / {} N²m²s",
           lambda: [mean(TUNED, f"{v}_tuned", "yaw", "int", "S1") for v in ("rise", "srise", "cdo_srise")]),
+    Quote("docs/tijjani.md", "goes without the pushes in at most {} s (depth) and {} s (yaw) over the 5 seeds",
+          lambda: [values(T3, "cdo_srise", s, "recovery", "S3").max() for s in ("depth", "yaw")]),
     Quote("README.md", "(CDO {} % depth, {} % yaw;\n  paper −45 %, −25 %)",
           lambda: [change((OBS, "cdo", s, "rmse"), (OBS, "eo", s, "rmse")) for s in ("depth", "yaw")]),
     Quote("README.md", "(largest error over 0.1–2 s: {} vs {} cm, {} vs {} rad)",
