@@ -73,7 +73,10 @@ class RovSensors(BaseModel):
     model_config = ConfigDict(extra="forbid")
     depth_period: float = Field(0.05, gt=0, description="[s] pressure sensor (Tijjani Table I)")
     attitude_period: float = Field(0.04, gt=0, description="[s] IMU (Tijjani Table I)")
-    depth_noise: float = Field(0.003, ge=0, description="[m] white noise std of the depth samples (assumed)")
+    depth_noise: float = Field(
+        0.001, ge=0, description="[m] white noise std of the depth samples (assumed: about 4x the MS5803-02BA's "
+        "resolution; the depth ordering of Table III holds up to about 2 mm, docs/tijjani.md)",
+    )
     yaw_noise_deg: float = Field(0.1, ge=0, description="[deg] white noise std of the yaw samples (assumed)")
     depth_rate: Literal["difference", "true"] = Field(
         "difference", description="heave rate fed to measurement-fed controllers: 'difference' of the last two depth "
