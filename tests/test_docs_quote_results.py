@@ -7,6 +7,7 @@ equal its recomputed value to the precision it is printed with (half a unit of i
 
 from __future__ import annotations
 
+import json
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,6 +47,11 @@ def mean(*cell, scale: float = 1.0) -> float:
 def change(a: tuple, b: tuple) -> float:
     """a vs b in %, on the means (the tables' relative rows)."""
     return 100 * (mean(*a) / mean(*b) - 1)
+
+
+def manifest(path: str, *keys: str) -> list[float]:
+    record = json.loads((ROOT / "results" / path / "manifest.json").read_text())
+    return [record[k] for k in keys]
 
 
 def table_row(path: str, start: str) -> list[float]:
@@ -102,6 +108,8 @@ QUOTES = [
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
           lambda: [x for g in ("dgnss", "dualband")
                    for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
+    Quote("docs/torben.md", "records {} s of simulation ({} s summed over the two batches), {} s for the command",
+          lambda: manifest("torben_fig3_sweep", "wall_time_s", "batch_time_s", "total_time_s")),
     Quote("README.md", "(S1: {} > {} > {}\n  e-2 m; paper 1.22 > 0.72 > 0.35)",
           lambda: [mean(T3, v, "depth", "rmse", "S1", scale=e2) for v in ("rise", "srise", "cdo_srise")]),
     Quote("README.md", "S+RISE < RISE does not (S1 {} vs {} e-2 rad",
