@@ -1,4 +1,5 @@
-"""The README and docs quote the committed results; each quote here is recomputed from `results/*/metrics.csv`.
+"""The README and docs quote the committed results; each quote here is recomputed from them: means and intervals
+from `results/*/metrics.csv`, a sweep's paired changes from its `table.md`, timings from its `manifest.json`.
 
 A rerun that moves a committed number, or an edit of the prose that changes a quoted one, fails here and names the
 sentence to update. A quote is a literal piece of the document with ``{}`` where a number stands; each number must
@@ -30,9 +31,9 @@ def _metrics(experiment: str) -> pd.DataFrame:
 
 
 def values(experiment: str, variant: str, signal: str, metric: str, scenario: str | None = None) -> np.ndarray:
-    """One cell's values over the seeds of a committed experiment."""
+    """One cell's values over the seeds of a committed experiment (runs that diverged left out, as the tables do)."""
     m = _metrics(experiment)
-    sel = (m.variant == variant) & (m.signal == signal) & (m.metric == metric)
+    sel = (m.variant == variant) & (m.signal == signal) & (m.metric == metric) & (m.status == "ok")
     if scenario is not None:
         sel &= m.scenario == scenario
     v = m.loc[sel, "value"].to_numpy()
