@@ -79,7 +79,10 @@ class ResettingTuning(NpoTuning):
         "cond(I - Phi2 Phi1^-1) order, ~1e2 at delta = 2.5 s)",
     )
     k: float = Field(0.7, ge=0, le=1, description="interpolation gain k")
-    delta: float = Field(2.5, gt=0, description="reset time delta [s]")
+    delta: float = Field(
+        2.5, gt=0, description="reset time delta [s], applied as a whole number of engine steps, round(delta / dt) "
+        "and at least 1 (at dt = 0.05 s the Fig. 3 sweep's 100 log-spaced values give 72 distinct windows)",
+    )
     eps: Vec3 = Field((0.5, 0.5, 0.05), description="output error bounds epsilon [m, m, rad]")
     eps_scale: float = Field(1.0, gt=0, description="multiplies eps (the sweep's c_eps with eps = [0.1, 0.1, 0.01])")
     c_max: float = Field(1e10, ge=1, description="largest cond(I - Phi2 Phi1^-1), bis-scaled, for a jump")

@@ -64,7 +64,7 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
                 ax.plot(t[mask], truth[sig][mask, b], lw=1.0, label=labels[name])
         autoscale(ax, series)
         ax.set_ylabel(f"{NAMES.get(sig, sig)} [{UNITS.get(sig, '-')}]")
-        ax.legend(loc="upper right", fontsize=7)
+        ax.legend(loc="best", fontsize=7)
         if spec.error:
             axes[i * 2 + 1].set_ylabel(f"error [{UNITS.get(sig, '-')}]")
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
@@ -97,7 +97,7 @@ def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_
         bottom.set_ylabel(f"tau_{sig} [{UNITS.get(f'tau_{sig}', '-')}]")
         bottom.set_xlabel("time [s]")
         for ax in (top, mid, bottom):
-            ax.legend(loc="upper right", fontsize=7)
+            ax.legend(loc="best", fontsize=7)
     fig.suptitle(f"{spec.title or spec.file} (seed 0, {exp.scenario.vessel.kind})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
