@@ -86,6 +86,12 @@ def _fig1() -> list[float]:
     return [m, lo, hi, npo, 100 * (m / npo - 1)]
 
 
+def _eps_changes() -> list[float]:
+    """J(c_eps = 0.1) vs J(c_eps = 5) in % with its interval, differential then dual-band (the 20-seed sweep)."""
+    rows = [table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |") for g in ("dgnss", "dualband")]
+    return [x for row in rows for x in row[3:]]
+
+
 def _tuned_yaw(scenario: str) -> list[float]:
     variants = ("rise_tuned", "srise_tuned", "cdo_srise_tuned", "rise", "srise", "cdo_srise")
     return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
@@ -104,11 +110,9 @@ QUOTES = [
           lambda: [mean("torben_fig1", "resetting", "z", "J_tot_steady"), mean("torben_fig1", "npo", "z", "J_tot_steady"),
                    mean("torben_fig1", "resetting", "z", "n_jumps")]),
     Quote("docs/torben.md", "vs J(c_ε = 5) is {} % [{}, {}] differential and {} % [{}, {}] dual-band",
-          lambda: [x for g in ("dgnss", "dualband")
-                   for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
+          _eps_changes),
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
-          lambda: [x for g in ("dgnss", "dualband")
-                   for x in table_row("torben_fig3_sweep_eps_20seeds/table.md", f"| eps | {g} | z | 0.1 |")[3:]]),
+          _eps_changes),
     Quote("docs/torben.md", "records {} s of simulation ({} s summed over the two batches), {} s for the command",
           lambda: manifest("torben_fig3_sweep", "wall_time_s", "batch_time_s", "total_time_s")),
     Quote("README.md", "(S1: {} > {} > {}\n  e-2 m; paper 1.22 > 0.72 > 0.35)",
