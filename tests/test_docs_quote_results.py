@@ -50,6 +50,18 @@ def change(a: tuple, b: tuple) -> float:
     return 100 * (mean(*a) / mean(*b) - 1)
 
 
+def noise_part(experiment: str, variant: str, signal: str) -> float:
+    """The noise's share of a noisy-world std, sqrt(noisy^2 - noise-free^2) of the means (independent parts)."""
+    noisy, free = (mean(experiment, variant, signal, "std", scen) for scen in ("noisy", "noise_free"))
+    return float(np.sqrt(noisy**2 - free**2))
+
+
+def design(experiment: str, variant: str, key: str, scenario: str = "noisy") -> float:
+    """A value of a variant's observer design as the manifest records it."""
+    record = json.loads((ROOT / "results" / experiment / "manifest.json").read_text())
+    return record["designs"][scenario][variant][key]
+
+
 def manifest(path: str, *keys: str) -> list[float]:
     record = json.loads((ROOT / "results" / path / "manifest.json").read_text())
     return [record[k] for k in keys]
@@ -74,6 +86,7 @@ class Quote:
 
 
 T4 = "bejarano_table4"
+F45, F7, KW = "bejarano_fig4_5", "bejarano_fig7", ("0.1", "1", "10", "100")
 T3 = "tijjani_table3"
 OBS = "tijjani_observers"
 TUNED = "tijjani_tuned"
@@ -104,6 +117,23 @@ QUOTES = [
           lambda: [mean(T4, "proposed_d1.2", "u", "std")]),
     Quote("docs/bejarano.md", "against simulated e_u of {} / {} / {} / {}",
           lambda: [mean(T4, v, "u", "std") for v in ("liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")]),
+    Quote("docs/bejarano.md", "δp 0.5 → 3 cuts e_u from\n  {} to {} and e_v from {} to {};",
+          lambda: [mean(F45, v, s, "std", "noise_free") for s in ("u", "v") for v in ("proposed_dp0.5", "proposed_dp3")]),
+    Quote("docs/bejarano.md", "(kn = 1) gives e_v {} / {} /\n  {} / {} (",
+          lambda: [mean(F7, f"kw{k}", "v", "std", "noise_free") for k in KW]),
+    Quote("docs/bejarano.md", "(δp = 3: e_σu {} → {}; kω = 100: e_σv {} → {})",
+          lambda: [*(mean(F45, v, "sigma_u", "std", "noisy") for v in ("proposed_dp0.5", "proposed_dp3")),
+                   *(mean(F7, f"kw{k}", "sigma_v", "std", "noisy") for k in (KW[0], KW[-1]))]),
+    Quote("docs/bejarano.md", "(δp: e_u {} → {}; kω 0.1 → 100: e_v {} → {})",
+          lambda: [*(mean(F45, v, "u", "std", "noisy") for v in ("proposed_dp0.5", "proposed_dp3")),
+                   *(mean(F7, f"kw{k}", "v", "std", "noisy") for k in (KW[0], KW[-1]))]),
+    Quote("docs/bejarano.md", "e_v's noise\n  part ≈ {} / {} / {} / {} for kω",
+          lambda: [noise_part(F7, f"kw{k}", "v") for k in KW]),
+    Quote("docs/bejarano.md", "and e_u's ≈ {} → {} for δp 0.5 → 3",
+          lambda: [noise_part(F45, v, "u") for v in ("proposed_dp0.5", "proposed_dp3")]),
+    Quote("docs/bejarano.md", "`noise_part_std_*` predicts {} / {} / {} / {} and {} → {} from the designed gains",
+          lambda: [*(design(F7, f"kw{k}", "noise_part_std_v") for k in KW),
+                   *(design(F45, v, "noise_part_std_u") for v in ("proposed_dp0.5", "proposed_dp3"))]),
     Quote("README.md", "J_tot_transient {} [{}, {}] resetting vs {} NPO ({} %", _fig1),
     Quote("docs/torben.md", "J_tot_transient {} [{}, {}] resetting vs {}", lambda: _fig1()[:4]),
     Quote("README.md", "J_tot_steady {} vs {} (no steady-state penalty), {} jumps per run",
