@@ -105,6 +105,24 @@ def _eps_changes() -> list[float]:
     return [x for row in rows for x in row[3:]]
 
 
+def _fig3_change(sweep: str, param: str, gnss: str, value: str) -> list[float]:
+    """A Fig. 3 sweep's change at a probe value against the first probe (with its interval over several seeds)."""
+    row = table_row(f"{sweep}/table.md", f"| {param} | {gnss} | z | {value} |")
+    return row[1:] if len(row) == 2 else row[3:]
+
+
+def _fig3_trend(param: str, value: str, *, rho: bool = False) -> list[float]:
+    """docs/torben.md's Fig. 3 table row: per GNSS model, the 1-seed then the 5-seed change (with the Spearman
+    rho over the trend range first, for delta)."""
+    out = []
+    for gnss in ("dgnss", "dualband"):
+        for sweep in ("torben_fig3_sweep", "torben_fig3_sweep_5seeds"):
+            if rho:
+                out.append(table_row(f"{sweep}/table.md", f"| {param} | {gnss} | z | [2.5, 10] |")[-1])
+            out += _fig3_change(sweep, param, gnss, value)
+    return out
+
+
 def _tuned_yaw(scenario: str) -> list[float]:
     variants = ("rise_tuned", "srise_tuned", "cdo_srise_tuned", "rise", "srise", "cdo_srise")
     return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
@@ -145,8 +163,22 @@ QUOTES = [
           _eps_changes),
     Quote("docs/torben.md", "records {} s of simulation ({} s summed over the two batches), {} s for the command",
           lambda: manifest("torben_fig3_sweep", "wall_time_s", "batch_time_s", "total_time_s")),
+    Quote("docs/torben.md", "| J(k = 0.7) vs J(k = 0) | {} % / {} % [{}, {}] | {} % / {} % [{}, {}] |",
+          lambda: _fig3_trend("k", "0.7")),
+    Quote("docs/torben.md", "[2.5, 10] s: Spearman ρ; J(10) vs J(2.5) | {}, {} % / {}, {} % [{}, {}] | {}, {} % / {}, {} % [{}, {}] |",
+          lambda: _fig3_trend("delta", "10", rho=True)),
+    Quote("docs/torben.md", "| J(c_ε = 0.1) vs J(c_ε = 5) | {} % / {} % [{}, {}] | {} % / {} % [{}, {}] |",
+          lambda: _fig3_trend("eps", "0.1")),
     Quote("README.md", "(S1: {} > {} > {}\n  e-2 m; paper 1.22 > 0.72 > 0.35)",
           lambda: [mean(T3, v, "depth", "rmse", "S1", scale=e2) for v in ("rise", "srise", "cdo_srise")]),
+    Quote("docs/tijjani.md", "S2-C1 ({} > {} > {}) and S2-C2 ({} > {} > {})",
+          lambda: [mean(T3, v, "depth", "rmse", scen, scale=e2)
+                   for scen in ("S2-C1", "S2-C2") for v in ("rise", "srise", "cdo_srise")]),
+    Quote("docs/tijjani.md", "(S1 {} vs {}; S2-C1 the same; S2-C2 {} vs\n  {} e-2 rad; paper 2.21 vs 2.22",
+          lambda: [mean(T3, v, "yaw", "rmse", scen, scale=e2) for scen in ("S1", "S2-C2") for v in ("cdo_srise", "srise")]),
+    Quote("docs/tijjani.md", "S1 depth {} (RISE) vs {} / {} N²s: the S+RISE loops pass more\n  sample noise to the "
+          "thrusters; yaw {} vs {} / {} N²m²s",
+          lambda: [mean(T3, v, s, "int", "S1") for s in ("depth", "yaw") for v in ("rise", "srise", "cdo_srise")]),
     Quote("README.md", "S+RISE < RISE does not (S1 {} vs {} e-2 rad",
           lambda: [mean(T3, v, "yaw", "rmse", "S1", scale=e2) for v in ("srise", "rise")]),
     Quote("README.md", "(depth {} vs {} / {} N²s; yaw {} / {} / {} N²m²s)",
