@@ -87,6 +87,7 @@ class Quote:
 
 T4 = "bejarano_table4"
 F45, F7, KW = "bejarano_fig4_5", "bejarano_fig7", ("0.1", "1", "10", "100")
+SIX = "| {} | {} | {} | {} | {} | {} |"  # a table row's six numbers
 T3 = "tijjani_table3"
 OBS = "tijjani_observers"
 TUNED = "tijjani_tuned"
@@ -121,6 +122,12 @@ def _fig3_trend(param: str, value: str, *, rho: bool = False) -> list[float]:
                 out.append(table_row(f"{sweep}/table.md", f"| {param} | {gnss} | z | [2.5, 10] |")[-1])
             out += _fig3_change(sweep, param, gnss, value)
     return out
+
+
+def _cross_dp(signal: str, metric: str) -> list[float]:
+    """A row of docs/cross.md's table: the six observers on Torben's sway impulse."""
+    variants = ("npo", "resetting", "liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")
+    return [mean("cross_dp_impulse", v, signal, metric) for v in variants]
 
 
 def _tuned_yaw(scenario: str) -> list[float]:
@@ -169,6 +176,10 @@ QUOTES = [
           lambda: _fig3_trend("delta", "10", rho=True)),
     Quote("docs/torben.md", "| J(c_ε = 0.1) vs J(c_ε = 5) | {} % / {} % [{}, {}] | {} % / {} % [{}, {}] |",
           lambda: _fig3_trend("eps", "0.1")),
+    Quote("docs/cross.md", f"| transient, 50–150 s {SIX}", lambda: _cross_dp("v", "rmse_transient")),
+    Quote("docs/cross.md", f"| final half, 300–600 s {SIX}", lambda: _cross_dp("v", "rmse_steady")),
+    Quote("docs/cross.md", f"| **σ_v RMSE [m/s²]**, transient {SIX}", lambda: _cross_dp("sigma_v", "rmse_transient")),
+    Quote("docs/cross.md", f"| σ_v, final half {SIX}", lambda: _cross_dp("sigma_v", "rmse_steady")),
     Quote("README.md", "(S1: {} > {} > {}\n  e-2 m; paper 1.22 > 0.72 > 0.35)",
           lambda: [mean(T3, v, "depth", "rmse", "S1", scale=e2) for v in ("rise", "srise", "cdo_srise")]),
     Quote("docs/tijjani.md", "S2-C1 ({} > {} > {}) and S2-C2 ({} > {} > {})",
