@@ -56,15 +56,15 @@ def noise_part(experiment: str, variant: str, signal: str) -> float:
     return float(np.sqrt(noisy**2 - free**2))
 
 
+@cache
+def manifest(experiment: str) -> dict:
+    """A committed result's ``manifest.json`` (read once)."""
+    return json.loads((ROOT / "results" / experiment / "manifest.json").read_text())
+
+
 def design(experiment: str, variant: str, key: str, scenario: str = "noisy") -> float:
     """A value of a variant's observer design as the manifest records it."""
-    record = json.loads((ROOT / "results" / experiment / "manifest.json").read_text())
-    return record["designs"][scenario][variant][key]
-
-
-def manifest(path: str, *keys: str) -> list[float]:
-    record = json.loads((ROOT / "results" / path / "manifest.json").read_text())
-    return [record[k] for k in keys]
+    return manifest(experiment)["designs"][scenario][variant][key]
 
 
 def table_row(path: str, start: str) -> list[float]:
@@ -169,7 +169,7 @@ QUOTES = [
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
           _eps_changes),
     Quote("docs/torben.md", "records {} s of simulation ({} s summed over the two batches), {} s for the command",
-          lambda: manifest("torben_fig3_sweep", "wall_time_s", "batch_time_s", "total_time_s")),
+          lambda: [manifest("torben_fig3_sweep")[k] for k in ("wall_time_s", "batch_time_s", "total_time_s")]),
     Quote("docs/torben.md", "| J(k = 0.7) vs J(k = 0) | {} % / {} % [{}, {}] | {} % / {} % [{}, {}] |",
           lambda: _fig3_trend("k", "0.7")),
     Quote("docs/torben.md", "[2.5, 10] s: Spearman ρ; J(10) vs J(2.5) | {}, {} % / {}, {} % [{}, {}] | {}, {} % / {}, {} % [{}, {}] |",

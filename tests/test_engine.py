@@ -100,25 +100,26 @@ def test_columns_is_np_stack_bit_for_bit():
     np.testing.assert_array_equal(got, np.stack(cols, axis=1))
 
 
-def test_open_loop_forces_kept_for_one_time_equal_fresh_ones():
-    """The world keeps the forces of the last time asked; asking again, after other times, gives the forces a
-    fresh world computes at that time."""
+def _open_loop_world(seeds: list[int]):
+    """Table III's noiseless open-loop world at root seed 5, one run per entry of ``seeds``."""
     from marinebench.loading import load_scenario
     from marinebench.scenario import OpenLoopASV
 
-    scenario, seeds = load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml"), np.array([0, 1, 1])
-    world = OpenLoopASV(scenario, 5, seeds)
+    return OpenLoopASV(load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml"), 5, np.array(seeds))
+
+
+def test_open_loop_forces_kept_for_one_time_equal_fresh_ones():
+    """The world keeps the forces of the last time asked; asking again, after other times, gives the forces a
+    fresh world computes at that time."""
+    world = _open_loop_world([0, 1, 1])
     for t in (0.0, 0.0, 1.25, 1.25, 2.5, 0.0):
-        got, want = world.forces(t), OpenLoopASV(scenario, 5, seeds).forces(t)
+        got, want = world.forces(t), _open_loop_world([0, 1, 1]).forces(t)
         for a, b in zip(got, want):
             np.testing.assert_array_equal(a, b)
     assert np.any(world.forces(1.25)[0] != world.forces(0.0)[0])
 
 
 def test_kept_forces_are_read_only():
-    from marinebench.loading import load_scenario
-    from marinebench.scenario import OpenLoopASV
-
-    tau, _ = OpenLoopASV(load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml"), 5, np.array([0])).forces(0.5)
+    tau, _ = _open_loop_world([0]).forces(0.5)
     with pytest.raises(ValueError, match="read-only"):
         tau[0, 0] = 1.0
