@@ -167,20 +167,19 @@ def run(
 ) -> None:
     """Run experiments; each writes config.resolved.yaml, manifest.json, metrics.csv, table.md, claims.md, figures/."""
     from marinebench.experiments.cluster import available_cores
-    from marinebench.results.writer import writable_folder
+    from marinebench.results.writer import output_folder
 
     base = out_dir if out_dir is not None else Path("results")
     with one_line_errors():
         configs = _distinct_targets(configs, base)
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
-    with one_line_errors():
-        writable_folder(base)
     failing = 0
-    if resume:
-        loaded, failing = _skip_current(loaded, base, quiet)
-    jobs = min(jobs or available_cores(), max(1, len(loaded)))
     try:
-        failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
+        with one_line_errors(), output_folder(base):
+            if resume:
+                loaded, failing = _skip_current(loaded, base, quiet)
+            jobs = min(jobs or available_cores(), max(1, len(loaded)))
+            failing += _run_parallel(loaded, base, jobs, quiet) if jobs > 1 else _run_serial(loaded, base, quiet)
     except KeyboardInterrupt as exc:
         _interrupted("the experiments already written are complete, the others untouched; the same command with "
                      "--resume runs only those not written", exc)

@@ -273,7 +273,21 @@ def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch
     assert res.exit_code == code and res.output.strip() == (
         "interrupted: the experiments already written are complete, the others untouched; the same command with "
         "--resume runs only those not written")
-    assert list((tmp_path / "o").iterdir()) == []
+    assert not (tmp_path / "o").exists()  # not even the --out folder the command made: nothing was written in it
+
+
+def test_an_interrupted_run_leaves_an_existing_out_folder_and_removes_only_the_empty_ones_it_made(tiny_config, tmp_path,
+                                                                                                monkeypatch):
+    from marinebench import cli
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_run_and_write", interrupt)
+    (tmp_path / "kept").mkdir()
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "kept" / "a" / "b"), "--jobs", "1", "--quiet"])
+    assert res.exit_code == 130
+    assert (tmp_path / "kept").is_dir() and list((tmp_path / "kept").iterdir()) == []
 
 
 def test_the_entry_point_turns_sigterm_into_an_interruption(monkeypatch):

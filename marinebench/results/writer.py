@@ -48,6 +48,25 @@ def writable_folder(folder: Path, option: str = "--out") -> None:
 
 
 @contextmanager
+def output_folder(folder: Path, option: str = "--out") -> Iterator[None]:
+    """:func:`writable_folder` for the block that writes below ``folder``: the folders it had to create are removed
+    again when the block fails or is interrupted before anything was written in them, so a run stopped early
+    leaves no empty output folder behind (``rmdir`` removes only an empty folder; a folder in use stays)."""
+    folder = Path(folder)
+    created = [p for p in (folder, *folder.parents) if not p.exists()]  # deepest first
+    try:
+        writable_folder(folder, option)
+        yield
+    except BaseException:
+        for path in created:
+            try:
+                path.rmdir()
+            except OSError:
+                break
+        raise
+
+
+@contextmanager
 def atomic_directory(target: Path) -> Iterator[Path]:
     """Yield a temporary directory that replaces ``target`` only if the block succeeds."""
     target = Path(target)
