@@ -58,6 +58,21 @@ def check_step(groups: list[ObserverGroup], dt: float, limit: float) -> float:
     return rate
 
 
+def rk4_step(rhs: Callable[[float, list[np.ndarray]], list[np.ndarray]], t: float, dt: float,
+             s: list[np.ndarray]) -> list[np.ndarray]:
+    """One classic Runge-Kutta step of the jointly integrated states ``s`` (plant first, then the continuous
+    observers), ``rhs(t, s)`` giving their derivatives."""
+
+    def axpy(a: float, ds: list[np.ndarray]) -> list[np.ndarray]:
+        return [si + a * di for si, di in zip(s, ds)]
+
+    k1 = rhs(t, s)
+    k2 = rhs(t + dt / 2, axpy(dt / 2, k1))
+    k3 = rhs(t + dt / 2, axpy(dt / 2, k2))
+    k4 = rhs(t + dt, axpy(dt, k3))
+    return [si + dt / 6 * (a + 2 * b + 2 * c + d) for si, a, b, c, d in zip(s, k1, k2, k3, k4)]
+
+
 def simulate(
     world: World,
     groups: list[ObserverGroup],
@@ -85,9 +100,6 @@ def simulate(
         x_dot, y, tau = world.derivative(t, s[0])
         return [x_dot] + [g.observer.derivative(xh, y[g.index], tau[g.index]) for g, xh in zip(continuous, s[1:])]
 
-    def axpy(a: float, ds: list[np.ndarray], s: list[np.ndarray]) -> list[np.ndarray]:
-        return [si + a * di for si, di in zip(s, ds)]
-
     signals = sorted({name for g in groups for name in g.observer.signals})
     est = {name: np.full(B, np.nan) for name in signals}
     with np.errstate(all="ignore"):
@@ -95,9 +107,7 @@ def simulate(
             t = k * dt
             if begin_step is not None:
                 begin_step(k, t, state[0])
-            for g, xh in zip(groups, state[1:]):
-                for name, value in g.observer.outputs(xh).items():
-                    est[name][g.index] = value
+            _gather(groups, state[1:], est)
             if world_estimates is not None:
                 est.update(world_estimates(t, state[0]))
             truth = world.truth(t, state[0])
@@ -105,12 +115,7 @@ def simulate(
                 rec.update(k, t, truth, est)
             if k == n_steps:
                 break
-            flow = state[: nc + 1]
-            k1 = rhs(t, flow)
-            k2 = rhs(t + dt / 2, axpy(dt / 2, k1, flow))
-            k3 = rhs(t + dt / 2, axpy(dt / 2, k2, flow))
-            k4 = rhs(t + dt, axpy(dt, k3, flow))
-            new = [s + dt / 6 * (a + 2 * b + 2 * c + d) for s, a, b, c, d in zip(flow, k1, k2, k3, k4)]
+            new = rk4_step(rhs, t, dt, state[: nc + 1])
             if discrete:
                 y, tau = sampled(t, state[0])
                 new += [g.observer.step(xh, y[g.index], tau[g.index], k) for g, xh in zip(discrete, state[nc + 1 :])]
@@ -121,3 +126,10 @@ def simulate(
     for g, xh in zip(groups, state[1:]):
         diverged[g.index] |= ~np.isfinite(xh).all(axis=1)
     return diverged
+
+
+def _gather(groups: list[ObserverGroup], states: list[np.ndarray], est: dict[str, np.ndarray]) -> None:
+    """Write each group's outputs (named signals, one value per run) into the batch-wide ``est`` at its runs."""
+    for g, xh in zip(groups, states):
+        for name, value in g.observer.outputs(xh).items():
+            est[name][g.index] = value
