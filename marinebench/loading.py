@@ -116,24 +116,9 @@ def apply_set(doc: dict, assignment: str) -> str:
     node: Any = doc
     where: list[str] = []
     for i, part in enumerate(parts):
-        last = i == len(parts) - 1
-        if isinstance(part, tuple):  # [name] selector in a list of named items
-            if not isinstance(node, list):
-                raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
-            match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
-            if not match:
-                raise ConfigError("--set", key, f"no item named '{part[0]}'")
-            idx: int | str = match[0]
-        elif isinstance(node, list):
-            if not part.isdigit() or int(part) >= len(node):
-                raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1})")
-            idx = int(part)
-        elif isinstance(node, dict):
-            idx = part
-        else:
-            raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
+        idx = _child(node, part, key)
         where.append(str(idx))
-        if last:
+        if i == len(parts) - 1:
             node[idx] = value
         else:
             if isinstance(node, dict) and idx not in node:
@@ -142,6 +127,25 @@ def apply_set(doc: dict, assignment: str) -> str:
                 node[idx] = {}
             node = node[idx]
     return ".".join(where)
+
+
+def _child(node: Any, part: str | tuple[str], key: str) -> int | str:
+    """The index in ``node`` that one part of a ``--set`` key names: a ``[name]`` selector (a tuple) the position of
+    the list's item of that name, a number a list's position, any other part a mapping's key."""
+    if isinstance(part, tuple):  # [name] selector in a list of named items
+        if not isinstance(node, list):
+            raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
+        match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
+        if not match:
+            raise ConfigError("--set", key, f"no item named '{part[0]}'")
+        return match[0]
+    if isinstance(node, list):
+        if not part.isdigit() or int(part) >= len(node):
+            raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1})")
+        return int(part)
+    if isinstance(node, dict):
+        return part
+    raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
 
 
 def _check_world_key(doc: dict, key: str, where: list[str]) -> None:
