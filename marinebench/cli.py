@@ -348,7 +348,7 @@ def sweep(
     )
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
-    from marinebench.results.writer import writable_folder
+    from marinebench.results.writer import output_folder
 
     if chunk_size < 1:
         fail("--chunk-size: must be at least 1")
@@ -378,14 +378,12 @@ def sweep(
             err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
             raise typer.Exit(1)
         return
-    with one_line_errors():
-        writable_folder(target.parent)
     t0 = _time.perf_counter()
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
     try:
-        with one_line_errors(), where as pool, Progress(
+        with one_line_errors(), output_folder(target.parent), where as pool, Progress(
             TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
             TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
         ) as bar:

@@ -68,10 +68,10 @@ def test_unreachable_scheduler_is_a_clear_error():
 def test_missing_dask_is_one_line_exit_2_and_nothing_written(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if the 'dask' extra were not installed
     res = CliRunner().invoke(app, ["sweep", "k", "--config", str(CFG), "--n", "2", "--horizon", "15",
-                                   "--out", str(tmp_path), "--dask", "local", "--quiet"])
+                                   "--out", str(tmp_path / "out"), "--dask", "local", "--quiet"])
     assert res.exit_code == 2 and res.output.strip().splitlines() == [
         "error: --dask: needs Dask's distributed scheduler: pip install -e '.[dask]'"]
-    assert not any(tmp_path.iterdir())
+    assert not any(tmp_path.iterdir())  # not even the --out folder the command made
 
 
 class FakeClient:
