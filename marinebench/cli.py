@@ -183,7 +183,12 @@ def run(
     except KeyboardInterrupt as exc:
         _interrupted("the experiments already written are complete, the others untouched; the same command with "
                      "--resume runs only those not written", exc)
-    if require_claims and failing:
+    _claims_verdict(require_claims, failing)
+
+
+def _claims_verdict(required: bool, failing: int) -> None:
+    """``--require-claims``: exit 1, after everything is written, when any claim fails."""
+    if required and failing:
         err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
         raise typer.Exit(1)
 
@@ -350,17 +355,7 @@ def sweep(
     from marinebench.results.outputs import write_sweep
     from marinebench.results.writer import output_folder
 
-    if chunk_size < 1:
-        fail("--chunk-size: must be at least 1")
-    if jobs and dask:
-        fail("--jobs: runs the batches in local processes; with --dask, --workers sets a local cluster's size")
-    if n is not None and n < 2:
-        fail("--n: at least 2 points per parameter")
-    if horizon is not None and horizon <= 0:
-        fail("--horizon: must be positive")
-    if grid and require_claims:
-        fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
-             "use it on a one-at-a-time sweep")
+    _check_sweep_options(chunk_size, jobs, dask, n, horizon, grid, require_claims)
     _sweep_config(config)
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
@@ -374,9 +369,7 @@ def sweep(
         config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
     if known is not None:
-        if require_claims and known:
-            err.print(f"{known} claim(s) fail (see claims.md)", markup=False)
-            raise typer.Exit(1)
+        _claims_verdict(require_claims, known)
         return
     t0 = _time.perf_counter()
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
@@ -412,10 +405,23 @@ def sweep(
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
                   f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
                   f"-> {target}", markup=False)
-    failing = sum(c.fails for c in claims)
-    if require_claims and failing:
-        err.print(f"{failing} claim(s) fail (see claims.md)", markup=False)
-        raise typer.Exit(1)
+    _claims_verdict(require_claims, sum(c.fails for c in claims))
+
+
+def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | None, horizon: float | None,
+                         grid: bool, require_claims: bool) -> None:
+    """sweep: options that contradict each other or are out of range, one line each, before anything loads."""
+    if chunk_size < 1:
+        fail("--chunk-size: must be at least 1")
+    if jobs and dask:
+        fail("--jobs: runs the batches in local processes; with --dask, --workers sets a local cluster's size")
+    if n is not None and n < 2:
+        fail("--n: at least 2 points per parameter")
+    if horizon is not None and horizon <= 0:
+        fail("--horizon: must be positive")
+    if grid and require_claims:
+        fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
+             "use it on a one-at-a-time sweep")
 
 
 @app.command()
