@@ -6,14 +6,16 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
+
+from marinebench.settings import STRICT
 
 
 class _Claim(BaseModel):
     """A statement of the paper, checked on our runs (``claims.md``); ``metric`` and ``signals`` default to the
     table's, ``scenarios`` to every scenario its variants run on."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     text: str = Field(..., description="the claim, in the paper's words or close to them")
     source: str = Field("", description="where the paper makes it, e.g. 'Table IV' or 'Sec. IV-B'")
     metric: str | None = Field(None, description="metric name (default: the table's metric)")
@@ -109,7 +111,7 @@ class _SweepClaim(BaseModel):
     """A trend the paper states about a sweep, checked on the curves (mean over seeds) of each group
     (``claims.md`` of the sweep); ``metric`` defaults to the first tabulated, ``signal`` to every signal."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     text: str = Field(..., description="the claim, in the paper's words or close to them")
     source: str = Field("", description="where the paper makes it, e.g. 'Fig. 3'")
     param: str = Field(..., description="the swept parameter (a name of sweep.params)")

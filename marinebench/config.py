@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, model_validator
+from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
 
 from marinebench.claims import Claim, SweepClaim
 from marinebench.controllers.spec import ControllerSpec
@@ -20,6 +20,7 @@ from marinebench.observers.dp import DpObserver, NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 from marinebench.rov_scenario import RovScenario
 from marinebench.scenario import Scenario
+from marinebench.settings import STRICT
 
 ObserverTuning = Annotated[
     BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning | RovObserverSpec | CustomTuning, Field(discriminator="kind")
@@ -50,7 +51,7 @@ TRUTH_SIGNALS = {"open_loop_asv": SIGNALS + ("x", "y", "psi")}
 
 
 class Variant(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     name: str = Field(..., pattern=NAME, description="variant name used in tables and metrics.csv")
     label: str | None = Field(None, description="legend label (default: the name)")
     observer: ObserverTuning | None = Field(None, description="the observer under test (estimation experiments)")
@@ -75,7 +76,7 @@ class Variant(BaseModel):
 class ErrorMetric(BaseModel):
     """Statistics of the estimation error ``est - truth`` over ``t_start <= t <= t_end``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["std", "rmse", "max_abs"] = "std"
     name: str | None = Field(None, pattern=NAME, description="metric name in metrics.csv (default: the kind)")
     signals: list[str] | None = Field(
@@ -100,7 +101,7 @@ class JTotMetric(BaseModel):
     """Torben eq. (50): J = integral of ||S^-1 (z - z_hat)|| dt over the window, S the bis units, heading
     error wrapped; signal name ``z``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["j_tot"] = "j_tot"
     name: str = Field("J_tot", pattern=NAME)
     t_start: float = Field(0.0, ge=0, description="window start [s]")
@@ -126,7 +127,7 @@ class JTotMetric(BaseModel):
 class IntMetric(BaseModel):
     """Tijjani's INT = integral of tau^2 dt from the first time |e| <= tol, per DOF (signals depth, yaw)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["int"] = "int"
     name: str = Field("int", pattern=NAME)
     signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
@@ -145,7 +146,7 @@ class RecoveryMetric(BaseModel):
     until that DOF is back within ``tol`` of where it would have been without the pushes, for good (largest
     over the pushes) [s]."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["recovery"] = "recovery"
     name: str = Field("recovery", pattern=NAME)
     signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
@@ -170,7 +171,7 @@ Metric = Annotated[ErrorMetric | JTotMetric | IntMetric | RecoveryMetric, Field(
 class PaperValues(BaseModel):
     """Published numbers shown beside ours, in a column labelled as the paper's (never computed)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     source: str = Field(..., description="citation, e.g. 'Bejarano et al., Table IV'")
     values: dict[str, dict[str, float]] = Field(
         default_factory=dict,
@@ -182,13 +183,13 @@ class PaperValues(BaseModel):
 class Display(BaseModel):
     """How a table shows one metric of one signal: ``value * scale`` in ``unit``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     scale: float = Field(1.0, gt=0)
     unit: str = ""
 
 
 class TableSpec(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     title: str
     metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
     metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
@@ -208,7 +209,7 @@ class FigureSpec(BaseModel):
     ``tracking`` (closed loop, Tijjani Figs 3/5/7/9): a column per DOF with reference vs actual, tracking
     errors and control inputs."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["timeseries", "tracking"] = "timeseries"
     file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
     title: str = ""
@@ -230,7 +231,7 @@ class SweepParam(BaseModel):
     starts with ``observer.`` or ``controller.`` (``observer.cdo.lmi_decay``, ``controller.yaw.alpha``);
     ``fixed`` keys read the same way."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     key: str = Field(..., description="observer field (e.g. k, delta, eps_scale, delta_p1) or a dotted path in the "
                      "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay)")
     range: tuple[float, float]
@@ -268,7 +269,7 @@ class SweepParam(BaseModel):
 class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     variant: str = Field(..., description="the variant whose settings are swept")
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario the sweep runs on "
                                  "(default: the variant's first)")
@@ -311,7 +312,7 @@ class SweepSpec(BaseModel):
 
 
 class EngineOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     stiffness_limit: float = Field(
         0.5, gt=0, le=2.78, description="refuse dt unless dt*|lambda|max <= this (RK4 stable below 2.78)"
     )
@@ -322,7 +323,7 @@ class EngineOptions(BaseModel):
 class Experiment(BaseModel):
     """One paper table or figure: a scenario, variants, seeds, metrics and outputs."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     name: str = Field(..., pattern=NAME)
     description: str = ""
     scenario: AnyScenario | None = Field(None, description="the world (a file path, or {from: file, overrides})")

@@ -23,7 +23,7 @@ from __future__ import annotations
 from typing import Annotated, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from marinebench.environment.waves import component_amplitudes, dnv_gamma
 from marinebench.models.supply import SupplyParams, SupplyVessel, SupplyVesselParams, bis_scale
@@ -31,6 +31,7 @@ from marinebench.observers.dp import LUMPED_SIGNALS
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.sensors.notch import Biquad, tustin_notch
+from marinebench.settings import STRICT
 
 Vec3 = tuple[float, float, float]
 
@@ -38,7 +39,7 @@ Vec3 = tuple[float, float, float]
 class Impulse(BaseModel):
     """A rectangular body-frame load ``force`` [N, N, N m] during ``[t_start, t_start + duration)``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["impulse"] = "impulse"
     t_start: float = Field(..., ge=0)
     duration: float = Field(..., gt=0)
@@ -48,7 +49,7 @@ class Impulse(BaseModel):
 class SlowLoad(BaseModel):
     """A smooth raised-cosine body-frame load: rises over ``rise`` s, holds, falls back over ``rise`` s."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["slow"] = "slow"
     t_start: float = Field(..., ge=0)
     duration: float = Field(..., gt=0, description="total duration including rise and fall [s]")
@@ -68,7 +69,7 @@ Event = Annotated[Impulse | SlowLoad, Field(discriminator="kind")]
 class Waves(BaseModel):
     """JONSWAP sea and wave-frequency motion by harmonic superposition with constant RAO magnitudes."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["jonswap"] = "jonswap"
     hs: float = Field(2.0, ge=0, description="significant wave height [m]")
     tp: float = Field(6.3, gt=0, description="peak period [s]")
@@ -83,7 +84,7 @@ class Waves(BaseModel):
 
 
 class DpSensors(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     gnss_sigma: float = Field(0.1, ge=0, description="GM std [m]: 0.1 differential, 1.5 dual-band (see sigma_is)")
     heading_sigma_deg: float = Field(0.3, ge=0, description="std of the heading error [deg] (Torben Table I: 0.3)")
     heading_noise: Literal["gauss_markov", "white"] = Field(
@@ -121,7 +122,7 @@ class DpSensors(BaseModel):
 
 
 class DpInitial(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     eta: Vec3 = (0.0, 0.0, 0.0)
     nu: Vec3 = (0.0, 0.0, 0.0)
     bias: Vec3 = Field((0.0, 0.0, 0.0), description="slowly varying bias (current) load, NED [N, N, N m]")

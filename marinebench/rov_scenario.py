@@ -17,12 +17,13 @@ import itertools
 from typing import ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
+from marinebench.settings import STRICT
 
 ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
 OBSERVE = {None: 0, "cdo": 1, "eo": 2}
@@ -43,7 +44,7 @@ def min_jerk(t: float, points: list[tuple[float, float]]) -> tuple[float, float]
 class Push(BaseModel):
     """An external load on the plant: ``force = [F_z (N, down), M_psi (N m)]`` during the interval."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     t_start: float = Field(..., ge=0)
     duration: float = Field(..., gt=0)
     force: tuple[float, float]
@@ -53,7 +54,7 @@ class Payload(BaseModel):
     """Scenario S2-C1: a payload of ``weight_fraction`` of the ROV's weight hangs on a thread; it rests on
     the floor (no load) while the ROV is deeper than ``floor_depth``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     weight_fraction: float = Field(0.04, gt=0)
     floor_depth: float = Field(0.25, gt=0)
 
@@ -63,14 +64,14 @@ class RandomLoad(BaseModel):
     tether's "undesired torques"): per DOF a stationary first-order Gauss-Markov process
     ``v[n+1] = a v[n] + std sqrt(1 - a^2) xi[n]``, ``a = exp(-period / time_constant)``, held for ``period``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     std: tuple[float, float] = Field(..., description="[N, N m] stationary standard deviation (depth, yaw)")
     time_constant: float = Field(2.0, gt=0, description="[s]")
     period: float = Field(0.1, gt=0, description="[s] a new value every period (a multiple of dt)")
 
 
 class RovSensors(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     depth_period: float = Field(0.05, gt=0, description="[s] pressure sensor (Tijjani Table I)")
     attitude_period: float = Field(0.04, gt=0, description="[s] IMU (Tijjani Table I)")
     depth_noise: float = Field(

@@ -1,12 +1,17 @@
 """Partial settings over a validated model: a variant's controller gains over Table II, its CDO/EO settings
 over the scenario's. Unknown or invalid keys become a ValueError that names them, so config validation
-reports them as one line with the key path."""
+reports them as one line with the key path. ``STRICT`` is the pydantic configuration of every model read from a
+file."""
 
 from __future__ import annotations
 
 from typing import Any, TypeVar
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+#: Every file-level model: an unknown key is an error (a typo must not be silently ignored), and so is a
+#: non-finite number (YAML's .inf / .nan would pass ``gt=0`` bounds and fail deep in a design or the engine).
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 M = TypeVar("M", bound=BaseModel)
 

@@ -19,13 +19,15 @@ delta_1, delta_2 -> delta1, delta2, mu_1, mu_2 -> mu1, mu2, alpha.
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
+
+from marinebench.settings import STRICT
 
 
 class SRiseGains(BaseModel):
     """S+RISE gains of one DOF (Tijjani Table II)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     k0: float = Field(..., gt=0)
     beta: float = Field(..., gt=0)
     lambda0: float = Field(..., gt=0)
@@ -48,7 +50,7 @@ TABLE_II_YAW = SRiseGains(k0=0.72, beta=0.05, lambda0=0.06, eps1=0.014, eps2=1e-
 class RiseGains(BaseModel):
     """RISE gains of one DOF (defaults: SubjuGator z entries, baselines.md s.5.2)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     alpha1: float = Field(5.0, gt=0)
     ks: float = Field(125.0, gt=0)
     alpha2: float = Field(0.3, gt=0)

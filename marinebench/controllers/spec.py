@@ -12,11 +12,11 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
 from marinebench.plugins import user_class
-from marinebench.settings import over
+from marinebench.settings import STRICT, over
 
 # The unit of tau is not stated in the paper. RISE: SubjuGator gains in N / N m. S+RISE (Table II): yaw read
 # as kgf (x9.81); depth calibrated to x40 (a literal reading is unstable on the Leonard-like heave, README).
@@ -27,7 +27,7 @@ CUSTOM_MEMBERS = ("command",)  # what a custom controller class must have (the m
 class ControllerSpec(BaseModel):
     """The controller of a variant in a closed-loop (rov_tracking) scenario."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["rise", "srise", "custom"]
     feedback: Literal["measured", "cdo", "eo"] = Field(
         "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "

@@ -9,13 +9,15 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
+
+from marinebench.settings import STRICT
 
 Range = tuple[float, float]
 
 
 class _RangeModel(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -50,7 +52,7 @@ class RandomSinusoid(_RangeModel):
 class Constant(BaseModel):
     """A constant signal."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["constant"] = "constant"
     value: float = 0.0
 

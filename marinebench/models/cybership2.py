@@ -16,16 +16,17 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from marinebench.batch import columns
 from marinebench.models.supply import LinearDpParams
+from marinebench.settings import STRICT
 
 
 class CyberShip2Params(BaseModel):
     """Rigid-body, added-mass and damping coefficients (SI units, Skjetne sign convention)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["cybership2"] = "cybership2"
     L: float = Field(1.255, gt=0, description="length [m] (models.md; the bis length of the DP observers' design)")
     m: float = Field(23.8, gt=0, description="mass [kg]")

@@ -21,15 +21,16 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from marinebench.batch import columns
+from marinebench.settings import STRICT
 
 
 class LeonardLikeParams(BaseModel):
     """Heave/yaw stand-in for the Leonard ROV (assumed values; see the module docstring)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["leonard_like"] = "leonard_like"
     mass: float = Field(28.0, gt=0, description="[kg] Tijjani Table I")
     net_buoyancy: float = Field(9.0, description="B - W [N] ('floatability 9 N', Tijjani Table I)")

@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
 from marinebench.batch import columns
+from marinebench.settings import STRICT
 
 M_BIS = ((1.1274, 0.0, 0.0), (0.0, 1.8902, -0.0744), (0.0, -0.0744, 0.1278))
 D_BIS = ((0.0358, 0.0, 0.0), (0.0, 0.1183, -0.0124), (0.0, -0.0041, 0.0308))
@@ -35,7 +36,7 @@ D_BIS = ((0.0358, 0.0, 0.0), (0.0, 0.1183, -0.0124), (0.0, -0.0041, 0.0308))
 class SupplyVesselParams(BaseModel):
     """Linear DP model of the MSS supply vessel (bis matrices, length, mass)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["supply_dp_linear"] = "supply_dp_linear"
     L: float = Field(76.2, gt=0, description="length between perpendiculars [m]")
     m: float = Field(6.0e6, gt=0, description="mass [kg] (bis mass unit)")
@@ -53,7 +54,7 @@ D_SHIPX = ((1.30e5, 0.0, 0.0), (0.0, 8.27e4, 0.0), (0.0, 0.0, 1.83e8))
 class ShipxSupplyLfParams(BaseModel):
     """Low-frequency 3-DOF part of the MSS ShipX supply vessel (model B; M, D in SI)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["supply_shipx_lf"] = "supply_shipx_lf"
     L: float = Field(82.8, gt=0, description="length between perpendiculars [m]")
     m: float = Field(6362208.5, gt=0, description="mass rho*volume [kg] (bis mass unit)")
@@ -73,7 +74,7 @@ class ShipxSupplyLfParams(BaseModel):
 class LinearDpParams(BaseModel):
     """A linear low-frequency model (41) of any vessel in SI, e.g. the DP observers' design model of CyberShip II."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["linear_dp"] = "linear_dp"
     name: str = Field("", description="the vessel it was derived from")
     L: float = Field(..., gt=0, description="length [m] (bis length unit)")

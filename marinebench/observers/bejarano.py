@@ -15,17 +15,18 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from marinebench.design.lmi import A0_P, A_PSI, C_P, C_PSI, positional_design, rotational_design, verify
 from marinebench.errors import DesignError
 from marinebench.observers.base import rotate2, wrap_angle
+from marinebench.settings import STRICT
 
 
 class BejaranoTuning(BaseModel):
     """Tuning of the proposed estimator (paper Table I)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["bejarano"] = "bejarano"
     delta_psi1: float = Field(0.05, ge=0, description="rotational convergence rate delta_psi,1 [1/s]")
     delta_p1: float = Field(0.05, ge=0, description="positional convergence rate delta_p,1 [1/s]")

@@ -13,9 +13,9 @@ from __future__ import annotations
 from typing import Any, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
-from marinebench.settings import over
+from marinebench.settings import STRICT, over
 
 
 def chain_rhs(x_hat: np.ndarray, acc: np.ndarray, gain: np.ndarray, innovation: np.ndarray) -> np.ndarray:
@@ -35,7 +35,7 @@ class CdoParams(BaseModel):
     [3, 3, 1]; or give the vector.
     """
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     theta: float = Field(24.39, gt=0, description="theta (Table II)")
     k_w: float = Field(0.1, description="K_w (Table II)")
     k_star: Literal["lmi", "binomial"] | tuple[float, float, float] = Field("lmi", description="K* (see above)")
@@ -60,7 +60,7 @@ class CdoParams(BaseModel):
 class EoParams(BaseModel):
     """Extended high-gain observer (Chowdhury et al. 2022 form) on held samples; poles at -1/eps."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     eps: float = Field(0.041, gt=0, description="[s] 1/theta: the CDO's nominal bandwidth")
     a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
 
@@ -79,7 +79,7 @@ class RovObserverSpec(BaseModel):
         "cdo": "Tijjani's continuous-discrete observer (eq. 38, inter-sample predictor, K* from LMI (40)), as run in a closed loop.",
         "eo": "Extended high-gain observer of Chowdhury et al. 2022 (the Fig. 2 baseline), as run in a closed loop.",
     }
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["cdo", "eo"]
     cdo: dict[str, Any] = Field(
         default_factory=dict, description="this variant's CDO settings over the scenario's `cdo` (e.g. {lmi_decay: 0.2}); "

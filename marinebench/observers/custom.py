@@ -31,9 +31,10 @@ from numbers import Real
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, Field, field_validator
 
 from marinebench.plugins import split_source, user_class
+from marinebench.settings import STRICT
 
 SCENARIO_KINDS = ("open_loop_asv", "dp_supply")  # worlds whose observers take the measured pose and the thrust
 MEMBERS = ("signals", "scenario_kinds", "n_state", "init", "outputs", "max_rate")
@@ -77,7 +78,7 @@ def check_built(observer: Any, n_runs: int) -> None:
 class CustomTuning(BaseModel):
     """An observer class of your own (source: file.py:Class or module:Class; params: one mapping per run)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["custom"] = "custom"
     source: str = Field(..., description="file.py:ClassName (relative to the experiment file) or package.module:ClassName")
     params: dict[str, Any] = Field(default_factory=dict, description="passed to the class, one mapping per run")

@@ -21,11 +21,12 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from marinebench.design.kalman import DpGains, kalman_gains
 from marinebench.observers.base import rotate2, wrap_angle
 from marinebench.observers.fto import fto_jump, rk4_maps
+from marinebench.settings import STRICT
 
 Vec3 = tuple[float, float, float]
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
@@ -35,7 +36,7 @@ LUMPED_SIGNALS = ("sigma_u", "sigma_v", "sigma_r")  # Bejarano eq. (6): nu_dot -
 class NpoTuning(BaseModel):
     """Continuous LTV Luenberger observer with Kalman gain L1 (the NPO baseline; resetting with k = 0)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["npo"] = "npo"
     q: Vec3 = Field((50.0, 50.0, 10.0), description="Q1 diagonal (bias process noise, in bias_units^2/s)")
     r: Vec3 = Field((15.0, 15.0, 1.0), description="R1 diagonal [m^2, m^2, rad^2]")

@@ -15,16 +15,17 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
 from marinebench.batch import columns
 from marinebench.observers.base import wrap_angle
+from marinebench.settings import STRICT
 
 
 class LiuEsoTuning(BaseModel):
     """Tuning of the reconstructed Liu-Wang-Peng ESO ("LIU19-reconstructed")."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["liu_eso"] = "liu_eso"
     eps: float = Field(0.1, gt=0, description="time-scale parameter epsilon [s]")
     k: tuple[float, float, float] = Field((3.0, 3.0, 1.0), description="Hurwitz coefficients k1, k2, k3")

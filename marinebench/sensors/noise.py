@@ -13,13 +13,15 @@ from __future__ import annotations
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
+
+from marinebench.settings import STRICT
 
 
 class NoNoise(BaseModel):
     """Noiseless measurement."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["none"] = "none"
 
     def sample(self, rngs: list[np.random.Generator], channels: int) -> NoiseBatch | None:
@@ -29,7 +31,7 @@ class NoNoise(BaseModel):
 class BandLimitedUniform(BaseModel):
     """Bounded multisine noise; see the module docstring."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     kind: Literal["bandlimited_uniform"] = "bandlimited_uniform"
     bound: float = Field(0.2, gt=0, description="saturation bound n_p* [m]")
     f_low: float = Field(0.1, gt=0, description="lowest frequency [Hz]")
