@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import re
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -240,7 +241,8 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
     doc = read_yaml(path)
     base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
-    for v in doc.get("variants") or []:  # a custom observer's or controller's file is relative to this file
+    variants = doc.get("variants")
+    for v in variants if isinstance(variants, list) else []:  # a custom class's file is relative to this file
         for part in ("observer", "controller"):
             if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
                 v[part]["source"] = resolve_source(v[part]["source"], path.parent)
@@ -286,8 +288,29 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], r
     err = errors[0]
     unknown = err["type"] == "extra_forbidden"
     key, allowed = key_path(root, err["loc"], unknown)
+    msg = err["msg"].removeprefix("Value error, ")
+    if unknown:
+        msg = "unknown key" + unknown_key_hint(key, allowed)
+    elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
+        msg += " (YAML reads an unquoted true, false, yes, no, on or off as a boolean: quote the word)"
+    where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
+    if where:  # a cross-field check that names its key, relative to where it sits: 'variants.1.scenarios: ...'
+        key, msg = ".".join(filter(None, (key, where[1]))), where[2]
+    file = _origin_of(key, origins)
+    # the other keys with errors (a union's other members failing at the same key add nothing)
+    first = key or "(top level)"
+    keys = list(dict.fromkeys(k for e in errors[1:] if (k := key_path(root, e["loc"])[0] or "(top level)") != first))
+    if keys:
+        shown = ", ".join(keys[:3]) + (", …" if len(keys) > 3 else "")
+        msg += f" (and {len(keys)} more: {shown})"
+    return ConfigError(file, key or "(top level)", msg)
+
+
+def _origin_of(key: str, origins: dict[str, Path]) -> Path:
+    """The file a key was written in: the experiment, the scenario file it lives in, the file of a ``from:``
+    override or ``--set`` (last wins)."""
     file = origins[""]
-    for origin in sorted(o for o in origins if o.startswith("scenario")):  # the scenario file the key lives in
+    for origin in sorted(o for o in origins if o.startswith("scenario")):
         if key == origin or key.startswith(origin + "."):
             file = origins[origin]
     for origin, source in origins.items():
@@ -295,22 +318,10 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], r
             if not origin.startswith(tag):
                 continue
             dotted = origin[len(tag):]
-            # the key set there, a field inside it, or an unknown key the --set created on its way down
-            if key == dotted or key.startswith(dotted + ".") or (unknown and dotted.startswith(key + ".")):
+            # the key set there, a field inside it, or one the setting wrote into (or created on its way down)
+            if key == dotted or key.startswith(dotted + ".") or dotted.startswith(key + "."):
                 file = source
-    msg = err["msg"].removeprefix("Value error, ")
-    if unknown:
-        msg = "unknown key" + unknown_key_hint(key, allowed)
-    elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
-        msg += " (YAML reads an unquoted true, false, yes, no, on or off as a boolean: quote the word)"
-    where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
-    if where and not key:  # a cross-field check that names its key: 'variants.1.scenarios: ...'
-        key, msg = where.groups()
-    others = list(dict.fromkeys(key_path(root, e["loc"])[0] or "(top level)" for e in errors[1:]))
-    if others:
-        shown = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
-        msg += f" (and {len(errors) - 1} more: {shown})"
-    return ConfigError(file, key or "(top level)", msg)
+    return file
 
 
 def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
@@ -331,7 +342,12 @@ def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = N
     """:func:`load_experiment`, then :func:`preflight`: an experiment ready to run, and the files it came from
     (what ``marinebench run`` and :func:`marinebench.load` do before simulating)."""
     exp, origins = load_experiment(path, sets, profile)
-    preflight(exp, Path(path))
+    try:
+        preflight(exp, Path(path))
+    except ConfigError as exc:  # a design that fails for a value a --set or a scenario file gave: name that
+        if exc.file == str(path) and (source := _origin_of(exc.key, origins)) != origins[""]:
+            raise ConfigError(source, exc.key, exc.message) from None
+        raise
     return exp, origins
 
 
@@ -354,6 +370,32 @@ def _user_code(file: Path, key: str) -> Iterator[None]:
         yield
     except Exception as exc:  # noqa: BLE001 - the class's code: any exception is the user's to fix
         raise ConfigError(file, key, f"{type(exc).__name__}: {exc}") from None
+
+
+@contextmanager
+def _designing(file: Path, i: int, custom: bool) -> Iterator[None]:
+    """Build variant ``i``'s observer. A design that refuses its settings (an infeasible LMI), a custom class's
+    constructor refusing its params, and values valid in range but too extreme for a built-in design's numerics
+    (e.g. 1e300: an ArithmeticError or ValueError, as numpy's LinAlgError is) each become one config error; the
+    numerics' warnings are shown only when the design succeeds."""
+    from marinebench.errors import DesignError
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except DesignError as exc:
+            raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+        except Exception as exc:
+            if custom:
+                raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
+            if not isinstance(exc, ArithmeticError | ValueError):
+                raise
+            first = str(exc).splitlines()[0] if str(exc) else "numerical failure"
+            raise ConfigError(file, f"variants.{i}.observer", f"no design for these values ({type(exc).__name__}: "
+                              f"{first})") from None
+    for w in caught:
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
 def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
@@ -379,7 +421,6 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     """Check variant ``i``: its per-run world keys, that it has what its scenario needs (a controller in a
     closed loop, an applicable observer otherwise), and that its design solves. Returns the observer's group
     for the step check, or None for a controller."""
-    from marinebench.errors import DesignError
     from marinebench.experiments.runner import make_observer, observer_kinds_for, wants_lumped
     from marinebench.sim.engine import ObserverGroup
 
@@ -404,14 +445,8 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     if custom and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
         raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
                           f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
-    try:
+    with _designing(file, i, custom):
         group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0])
-    except DesignError as exc:
-        raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
-    except Exception as exc:  # a custom observer's constructor refusing its params
-        if not custom:
-            raise
-        raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
     if custom:
         with _user_code(file, f"variants.{i}.observer.source"):
             check_observer(group.observer, 1)

@@ -8,21 +8,22 @@ world does not depend on the batch size, on the other variants or on the order o
 from __future__ import annotations
 
 import zlib
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, Field, model_validator
 
 from marinebench.batch import columns
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
 from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
 from marinebench.sensors.noise import Noise, NoiseBatch, NoNoise
+from marinebench.settings import STRICT
 
 Vec3 = tuple[float, float, float]
 
 
 class Initial(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     eta: Vec3 = Field((0.0, 10.0, 0.0), description="eta(0) = [x, y, psi] [m, m, rad]")
     nu: Vec3 = Field((0.0, 0.0, 0.0), description="nu(0) = [u, v, r] [m/s, m/s, rad/s]")
 
@@ -30,7 +31,7 @@ class Initial(BaseModel):
 class Inputs(BaseModel):
     """Open-loop control tau = [F_u, 0, tau_r] (underactuated in sway)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     F_u: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(2.0, 4.0), amplitude=(0.5, 2.0)))
     tau_r: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.1, 0.1), amplitude=(0.1, 0.3)))
 
@@ -38,37 +39,44 @@ class Inputs(BaseModel):
 class Disturbances(BaseModel):
     """Environmental forces tau_w = [F_wu, F_wv, tau_wr] in the body frame."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
     F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
     tau_wr: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.0, 0.1)))
 
 
 class Sensors(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     position_noise: Noise = Field(default_factory=NoNoise, description="noise on the measured x, y")
 
 
 class ScenarioBase(BaseModel):
     """What every world has: a name, a horizon and the engine step (with the checks they share)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = STRICT
     name: str = Field(..., min_length=1)
     description: str = ""
     horizon: float = Field(..., gt=0, description="simulated time [s]")
     dt: float = Field(..., gt=0, description="integration step [s]")
 
+    #: Steps per run above which a horizon is refused as a typo: 1e8 steps of the fastest world take hours
+    #: and its per-run arrays (noise draws, references) would no longer fit in memory.
+    MAX_STEPS: ClassVar[int] = 10**8
+
     @model_validator(mode="after")
-    def _dt_below_horizon(self) -> ScenarioBase:
+    def _steps_in_range(self) -> ScenarioBase:
         if self.dt > self.horizon:
             raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
+        if self.horizon / self.dt > self.MAX_STEPS:
+            raise ValueError(f"horizon: {self.horizon:g} s at dt={self.dt:g} s is {self.horizon / self.dt:.3g} steps per "
+                             f"run; at most {self.MAX_STEPS:.0e}")
         return self
 
     def require_multiple_of_dt(self, period: float, key: str) -> None:
         """Sampled components must tick on the engine's step grid."""
         ratio = period / self.dt
         if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f"{key}={period} must be a multiple of dt={self.dt}")
+            raise ValueError(f"{key}: {period:g} s must be a multiple of dt={self.dt:g} s")
 
 
 class Scenario(ScenarioBase):

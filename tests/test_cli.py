@@ -95,6 +95,15 @@ BAD = {
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
+    # YAML's .inf passes a bound such as gt=0; before, it failed deep in the design with a traceback
+    "not_finite": (lambda d: d["variants"][1]["observer"].update(delta_psi1=float("inf")),
+                   "variants.1.observer.delta_psi1: Input should be a finite number"),
+    "not_a_list": (lambda d: d.update(variants=3), "variants: Input should be a valid list"),
+    # finite and in range, but beyond what the LMI design's numbers can hold: no traceback, no numpy warnings
+    "design_overflow": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1e300),
+                        "variants.1.observer: no design for these values (OverflowError"),
+    "too_many_steps": (lambda d: d["scenario"].update(horizon=1e12),
+                       "scenario.horizon: 1e+12 s at dt=0.01 s is 1e+14 steps per run; at most 1e+08"),
     # a window that ends after a run of 4 s: before, it measured nothing and the claims divided by zero
     "window_after_horizon": (lambda d: d["metrics"][0].update(t_start=10.0, t_end=20.0),
                              "metrics.0: metric 'std' window [10, 20] s is empty in a run of 4 s"),
@@ -319,6 +328,13 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "engine.nosuch.deeper=1"])  # a new key, and its parent
     assert res.exit_code == 2 and res.output.strip() == ("error: --set: engine.nosuch: unknown key "
                                                         "(allowed here: check_step, stiffness_limit, trace_dt)")
+    # a setting that makes a mapping where a list belongs: the error is at the list, and the --set made it
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "claims.0.text=x"])  # tiny has no claims
+    assert res.exit_code == 2 and res.output.startswith("error: --set: claims: Input should be a valid list"), res.output
+    # a cross-field check of the world names its key, and so the --set it came from
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.horizon=1e7"])
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenario.horizon: 1e+07 s at dt=0.01 s is 1e+09 "
+                                                        "steps per run; at most 1e+08"), res.output
 
 
 def test_set_into_the_wrong_world_says_where_the_key_goes():

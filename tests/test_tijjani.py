@@ -213,7 +213,10 @@ def test_bad_multi_scenario_input_is_one_line_naming_file_and_key(tmp_path):
     res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "tijjani_table3.yaml"), "--out", str(tmp_path / "o"),
                                    "--set", "variants[srise].scenarios=[S7]"])
     assert res.exit_code == 2
-    assert "tijjani_table3.yaml: variants.1.scenarios: unknown scenarios ['S7']" in res.output
+    # the cross-field check names its key, so the message names the --set that wrote it
+    assert res.output.strip() == "error: --set: variants.1.scenarios: unknown scenarios ['S7'] (have: S1, S2-C1, S2-C2, S3)"
+    res = CliRunner().invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set", "variants=[]"])
+    assert res.output.strip() == "error: --set: variants: List should have at least 1 item after validation, not 0"
     assert not (tmp_path / "o").exists()
 
 
