@@ -408,6 +408,10 @@ def sweep(
     _claims_verdict(require_claims, sum(c.fails for c in claims))
 
 
+#: Points per swept parameter at most (a grid has the square): more is a typo, not a study.
+MAX_SWEEP_N = 1000
+
+
 def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | None, horizon: float | None,
                          grid: bool, require_claims: bool) -> None:
     """sweep: options that contradict each other or are out of range, one line each, before anything loads."""
@@ -415,10 +419,10 @@ def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | 
         fail("--chunk-size: must be at least 1")
     if jobs and dask:
         fail("--jobs: runs the batches in local processes; with --dask, --workers sets a local cluster's size")
-    if n is not None and n < 2:
-        fail("--n: at least 2 points per parameter")
-    if horizon is not None and horizon <= 0:
-        fail("--horizon: must be positive")
+    if n is not None and not 2 <= n <= MAX_SWEEP_N:
+        fail(f"--n: from 2 to {MAX_SWEEP_N} points per parameter")
+    if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both
+        fail("--horizon: must be a positive, finite number of seconds")
     if grid and require_claims:
         fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
              "use it on a one-at-a-time sweep")
@@ -494,8 +498,8 @@ def compare(
     worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
     from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
 
-    if rtol < 0 or atol < 0:
-        fail("--rtol/--atol: tolerances must be non-negative")
+    if not (rtol >= 0 and atol >= 0):  # nan fails too
+        fail("--rtol/--atol: tolerances must be non-negative numbers")
     tol = Tolerance(rtol=rtol, atol=atol)
     with one_line_errors():
         if variants is not None:

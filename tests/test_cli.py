@@ -162,6 +162,12 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["run", "{cfg}", "--bogus"], "error: No such option: --bogus"),
     (["run"], "error: Missing argument 'CONFIG'. (see 'marinebench run --help')"),
     (["sweep", "k", "--n", "x"], "error: Invalid value for '--n': Input should be a valid integer"),
+    # out of range for a sweep: a typo that would hang building 1e8 points, or fail deep in the world's arrays
+    (["sweep", "k", "--n", "100000000"], "error: --n: from 2 to 1000 points per parameter"),
+    (["sweep", "k", "--horizon", "nan"], "error: --horizon: must be a positive, finite number of seconds"),
+    (["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--horizon", "1e300"],
+     "error: --horizon: 1e+300 s: 1e+300 s at dt=0.05 s is 2e+301 steps per run; at most 1e+08"),
+    (["compare", "{cfg}", "{cfg}", "--rtol", "nan"], "error: --rtol/--atol: tolerances must be non-negative numbers"),
     (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
 ])
 def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):

@@ -14,6 +14,7 @@ import itertools
 import re
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -97,14 +98,22 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     n = n or (GRID_N if grid else spec.n)
     variants = [v for axes in ([params] if grid else [[p] for p in params])
                 for v in _points(spec, base, axes, groups, n, file)]
-    if horizon is not None:
-        try:
-            exp.check_windows(horizon)
-        except ValueError as exc:
-            raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
-    scenario = exp.scenario if horizon is None else exp.scenario.model_copy(update={"horizon": horizon})
+    scenario = exp.scenario if horizon is None else _with_horizon(exp, horizon, file)
     return exp.model_copy(update={"variants": variants, "figures": [], "table": None, "sweep": None, "name": name,
                                   "scenario": scenario})
+
+
+def _with_horizon(exp: Experiment, horizon: float, file: Path) -> Any:
+    """The experiment's world run for ``horizon`` seconds, validated as if the file said so (its metric windows,
+    the step count)."""
+    try:
+        exp.check_windows(horizon)
+        return type(exp.scenario).model_validate(exp.scenario.model_dump() | {"horizon": horizon})
+    except ValidationError as exc:
+        msg = exc.errors()[0]["msg"].removeprefix("Value error, ").removeprefix("horizon: ")
+        raise ConfigError("--horizon", "", f"{horizon:g} s: {msg} ({file})") from None
+    except ValueError as exc:
+        raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
 
 
 def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path) -> list[str]:
