@@ -91,7 +91,6 @@ class ErrorMetric(BaseModel):
     )
     t_end: float | None = Field(None, gt=0, description="end of the window [s] (default: the horizon)")
 
-
     @property
     def label(self) -> str:
         return self.name or self.kind

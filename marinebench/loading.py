@@ -233,6 +233,15 @@ def _own_leaves(doc: dict) -> list[str]:
             for leaf in (_leaf_paths(v, k) if isinstance(v, dict) and v else [k])]
 
 
+def _resolve_sources(doc: dict, folder: Path) -> None:
+    """A custom observer's or controller's ``source: file.py:Class`` is relative to the file that names it."""
+    variants = doc.get("variants")
+    for v in variants if isinstance(variants, list) else []:
+        for part in ("observer", "controller"):
+            if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
+                v[part]["source"] = resolve_source(v[part]["source"], folder)
+
+
 def resolve_document(path: Path, sets: list[str] = (), profile: str | None = None,
                      _seen: tuple[Path, ...] = ()) -> tuple[dict, dict[str, Path]]:
     """Read an experiment file, inline its scenario, apply a profile and ``--set``; returns (document, origins).
@@ -241,11 +250,7 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     file's keys over it (mappings key by key, lists replaced), e.g. the same experiment on another plant."""
     doc = read_yaml(path)
     base, origins = _base_experiment(doc, path, _seen) if "from" in doc else ({}, {})
-    variants = doc.get("variants")
-    for v in variants if isinstance(variants, list) else []:  # a custom class's file is relative to this file
-        for part in ("observer", "controller"):
-            if isinstance(v, dict) and isinstance(v.get(part), dict) and "source" in v[part]:
-                v[part]["source"] = resolve_source(v[part]["source"], path.parent)
+    _resolve_sources(doc, path.parent)
     origins[""] = path
     if base:  # this file's keys over the base's, with those it overrides in the base's world
         leaves = _own_leaves(doc)

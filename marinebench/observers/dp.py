@@ -56,7 +56,6 @@ class NpoTuning(BaseModel):
         "an aggressive L2 turns into large jump errors)",
     )
 
-
     def design_key(self, length: float) -> tuple:
         """Everything the gains and one-step maps depend on, hashable: (Q1, R1, q2_scale, bias_units,
         moment arm [m] with 'L' resolved to ``length``, discretization)."""
