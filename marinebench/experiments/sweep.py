@@ -109,11 +109,9 @@ def _with_horizon(exp: Experiment, horizon: float, file: Path) -> Any:
     try:
         exp.check_windows(horizon)
         return type(exp.scenario).model_validate(exp.scenario.model_dump() | {"horizon": horizon})
-    except ValidationError as exc:
-        msg = exc.errors()[0]["msg"].removeprefix("Value error, ").removeprefix("horizon: ")
-        raise ConfigError("--horizon", "", f"{horizon:g} s: {msg} ({file})") from None
-    except ValueError as exc:
-        raise ConfigError("--horizon", "", f"{horizon:g} s: {exc} ({file})") from None
+    except ValueError as exc:  # a metric window past the horizon, or the world's own checks (a ValidationError)
+        msg = exc.errors()[0]["msg"].removeprefix("Value error, ") if isinstance(exc, ValidationError) else str(exc)
+        raise ConfigError("--horizon", "", f"{horizon:g} s: {msg.removeprefix('horizon: ')} ({file})") from None
 
 
 def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path) -> list[str]:
