@@ -17,6 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from pydantic import ValidationError
 
@@ -378,11 +379,11 @@ def _user_code(file: Path, key: str) -> Iterator[None]:
 
 
 @contextmanager
-def _designing(file: Path, i: int, custom: bool) -> Iterator[None]:
-    """Build variant ``i``'s observer. A design that refuses its settings (an infeasible LMI), a custom class's
-    constructor refusing its params, and values valid in range but too extreme for a built-in design's numerics
-    (e.g. 1e300: an ArithmeticError or ValueError, as numpy's LinAlgError is) each become one config error; the
-    numerics' warnings are shown only when the design succeeds."""
+def _numerics(file: Path, key: str, failure: str, custom_key: str | None = None) -> Iterator[None]:
+    """Build an observer's design or a world. A design that refuses its settings (an infeasible LMI), a custom
+    class's constructor refusing its params (at ``custom_key``), and values valid in range but too extreme for the
+    numerics (e.g. 1e300: an ArithmeticError or ValueError, as numpy's LinAlgError is) each become one config
+    error (``failure``, then the exception); the numerics' warnings are shown only when the build succeeds."""
     from marinebench.errors import DesignError
 
     with warnings.catch_warnings(record=True) as caught:
@@ -390,30 +391,32 @@ def _designing(file: Path, i: int, custom: bool) -> Iterator[None]:
         try:
             yield
         except DesignError as exc:
-            raise ConfigError(file, f"variants.{i}.observer", str(exc)) from None
+            raise ConfigError(file, key, str(exc)) from None
         except Exception as exc:
-            if custom:
-                raise ConfigError(file, f"variants.{i}.observer.params", f"{type(exc).__name__}: {exc}") from None
+            if custom_key is not None:
+                raise ConfigError(file, custom_key, f"{type(exc).__name__}: {exc}") from None
             if not isinstance(exc, ArithmeticError | ValueError):
                 raise
             first = str(exc).splitlines()[0] if str(exc) else "numerical failure"
-            raise ConfigError(file, f"variants.{i}.observer", f"no design for these values ({type(exc).__name__}: "
-                              f"{first})") from None
+            raise ConfigError(file, key, f"{failure} ({type(exc).__name__}: {first})") from None
     for w in caught:
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
 def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     """Preflight of one scenario's variants (``key`` is where the scenario sits, ``positions`` the variants'
-    indices in the file): each variant's controller or observer, the CDO designs, the metrics' signals, the step."""
+    indices in the file): each variant's controller or observer, the CDO designs, that each variant's world builds
+    (one seed), the metrics' signals, the step."""
     from marinebench.errors import StiffnessError
-    from marinebench.experiments.runner import plant_of
+    from marinebench.experiments.runner import make_world, plant_of
     from marinebench.sim.engine import check_step
 
     plant = plant_of(exp.scenario)  # the model every variant's observer is designed on
     groups = [g for i, v in zip(positions, exp.variants) if (g := _preflight_variant(exp, file, i, v, plant)) is not None]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
+    with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
+        make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
     _preflight_metrics(exp, file, groups)
     if exp.engine.check_step:
         try:
@@ -450,7 +453,8 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     if custom and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
         raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
                           f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
-    with _designing(file, i, custom):
+    with _numerics(file, f"variants.{i}.observer", "no design for these values",
+                   f"variants.{i}.observer.params" if custom else None):
         group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0])
     if custom:
         with _user_code(file, f"variants.{i}.observer.source"):

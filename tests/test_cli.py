@@ -343,6 +343,16 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
                                                         "steps per run; at most 1e+08"), res.output
 
 
+def test_a_world_too_extreme_to_build_is_one_line_at_validation(tmp_path):
+    """A notch at 1e300 rad/s is in range (> 0) but overflows the world's filter design: before, a traceback
+    from inside the run; now the world is built once (one seed) before anything runs."""
+    res = runner.invoke(app, ["run", str(ROOT / "configs" / "torben_fig1.yaml"), "--out", str(tmp_path / "o"),
+                              "--set", "scenario.sensors.notch_w0=1e300"])
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenario: the world cannot be built from these "
+                                                        "values (OverflowError: (34, 'Numerical result out of range'))")
+    assert not (tmp_path / "o").exists()
+
+
 def test_set_into_the_wrong_world_says_where_the_key_goes():
     multi = str(ROOT / "configs" / "tijjani_table3.yaml")
     res = runner.invoke(app, ["validate", multi, "--set", "scenario.cdo.theta=30"])
