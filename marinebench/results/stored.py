@@ -43,6 +43,15 @@ def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None
     for col in ("seed", "value"):
         if col in need and not pd.api.types.is_numeric_dtype(df[col]):
             raise StoredResultError(f"{path}: column '{col}' is not numeric")
+    if usecols is None:  # one value per cell and seed, or the paired comparison has nothing to pair
+        if (blank := df[METRICS_COLUMNS[:-1]].isna().any(axis=1)).any():  # a value may be nan (a diverged run)
+            raise StoredResultError(f"{path}: line {int(blank.to_numpy().argmax()) + 2}: a row without its "
+                                    f"{', '.join(METRICS_COLUMNS[:-1])} (a truncated file?)")
+        twice = df[df.duplicated(METRICS_COLUMNS[:-1], keep=False)]
+        if len(twice):
+            first = ", ".join(f"{k}={twice.iloc[0][k]}" for k in METRICS_COLUMNS[:-1])
+            raise StoredResultError(f"{path}: {len(twice)} rows share their experiment, scenario, variant, seed, "
+                                    f"signal and metric (first: {first})")
     return df[usecols] if usecols else df
 
 
