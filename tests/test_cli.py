@@ -643,20 +643,3 @@ def test_a_worker_that_dies_is_one_line(tmp_path, monkeypatch):
                                    "--jobs", "2", "--out", str(tmp_path)])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
     assert res.output.startswith("error: ") and "its --jobs worker process died (BrokenProcessPool" in res.output
-
-
-def test_the_first_experiment_example_runs_and_sweeps(tmp_path):
-    """README, *Your first experiment*: the example runs, compares its variants and sweeps as shown (short)."""
-    config = ROOT / "examples" / "first_experiment" / "asv_observers.yaml"
-    res = runner.invoke(app, ["run", str(config), "--out", str(tmp_path), "--seeds", "2", "--set", "scenario.horizon=7", "--quiet"])
-    assert res.exit_code == 0, res.output
-    out = tmp_path / "asv_observers"
-    assert (out / "table.md").exists() and (out / "figures" / "surge.png").exists()
-    pair = runner.invoke(app, ["compare", str(out), "--variants", "liu_eps0.1", "proposed_d1.5"])
-    assert pair.exit_code in (0, 1) and "proposed_d1.5 vs liu_eps0.1" in pair.output, pair.output
-    sweep = runner.invoke(app, ["sweep", "--config", str(config), "delta_p1", "--n", "2", "--horizon", "7", "--seeds", "1",
-                                "--out", str(tmp_path), "--quiet", "--jobs", "1"])
-    assert sweep.exit_code == 0, sweep.output
-    [folder] = tmp_path.glob("asv_observers_sweep*")
-    metrics = pd.read_csv(folder / "metrics.csv")
-    assert set(metrics["param"]) == {"delta_p1"} and sorted(set(metrics["param_value"])) == [0.5, 5.0]
