@@ -155,6 +155,17 @@ def _tuned_yaw(scenario: str) -> list[float]:
 
 
 QUOTES = [
+    Quote("README.md", "pushes in at most {} s (paper: < 2 s)",
+          lambda: [max(values(T3, "cdo_srise", s, "recovery", "S3").max() for s in ("depth", "yaw"))]),
+    Quote("README.md", "the CDO's yaw error is {} % below the EO's, its depth error {} %\n  above",
+          lambda: [-change((OBS, "cdo", "yaw", "rmse_steady"), (OBS, "eo", "yaw", "rmse_steady")),
+                   change((OBS, "cdo", "depth", "rmse_steady"), (OBS, "eo", "depth", "rmse_steady"))]),
+    Quote("README.md", "J(k = 0.7) vs J(k = 0): {} % differential, {} % dual-band",
+          lambda: [_fig3_change("torben_fig3_sweep", "k", g, "0.7")[0] for g in ("dgnss", "dualband")]),
+    Quote("README.md", "[2.5, 10] s (Spearman ρ {}–{})",
+          lambda: [f(table_row(f"{sweep}/table.md", f"| delta | {g} | z | [2.5, 10] |")[-1]
+                     for sweep in ("torben_fig3_sweep", "torben_fig3_sweep_5seeds") for g in ("dgnss", "dualband"))
+                   for f in (min, max)]),
     Quote("README.md", "Our Liu rows land on the paper's (ratios {}–{})", lambda: _table3()["liu"]),
     Quote("docs/bejarano.md", "(ratios ours/paper {}–{} over the twelve cells)", lambda: _table3()["liu"]),
     Quote("README.md", "far above the paper's (e_u {} vs 3.9e-6) and {}–{}× our Liu ε = 0.1's",
