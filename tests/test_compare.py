@@ -339,10 +339,10 @@ DAMAGED = {
     # a file cut short mid-row, and one with rows appended twice: before, tracebacks from the sort and the pairing
     "metrics_truncated": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\nexp,s,a,0,u,std,0.1\nexp,s\n",
                           "metrics.csv: line 3: a row without its experiment, scenario, variant, seed, signal, metric"),
-    "metrics_duplicated": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\n"
-                           b"exp,s,a,0,u,std,0.1\nexp,s,a,0,u,std,0.2\n",
-                           "metrics.csv: 2 rows share their experiment, scenario, variant, seed, signal and metric "
-                           "(first: experiment=exp, scenario=s, variant=a, seed=0, signal=u, metric=std)"),
+    "metrics_duplicated": ("metrics.csv", (b"experiment,scenario,variant,seed,signal,metric,value\n"
+                                           b"exp,s,a,0,u,std,0.1\nexp,s,a,0,u,std,0.2\n"),
+                           ("metrics.csv: 2 rows share their experiment, scenario, variant, seed, signal and metric "
+                            "(first: experiment=exp, scenario=s, variant=a, seed=0, signal=u, metric=std)")),
 }
 
 
