@@ -117,53 +117,82 @@ def evaluate(exp: Experiment, metrics: pd.DataFrame) -> list[ClaimResult]:
     return results
 
 
+@dataclass
+class _Cell:
+    """One scenario and signal of a claim: each variant's values over seeds, and their means."""
+
+    scenario: str
+    signal: str
+    series: dict[str, pd.Series]
+
+    @property
+    def means(self) -> dict[str, float]:
+        return {v: float(s.mean()) if len(s) else math.nan for v, s in self.series.items()}
+
+    def check(self, stat: float, ci, needs: str, holds: bool, shown: list[str]) -> Check:
+        means = self.means
+        return Check(self.scenario, self.signal, {v: means[v] for v in shown}, stat, ci, needs,
+                     bool(holds) and math.isfinite(stat))
+
+
 def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Check]:
-    series = {v: _per_seed(metrics, scenario, v, signal, metric) for v in variants}
-    means = {v: float(s.mean()) if len(s) else math.nan for v, s in series.items()}
-
-    def check(stat: float, ci, needs: str, holds: bool, shown: list[str] = variants) -> Check:
-        return Check(scenario, signal, {v: means[v] for v in shown}, stat, ci, needs, bool(holds) and math.isfinite(stat))
-
-    if isinstance(claim, LessClaim | OrderClaim):
-        if isinstance(claim, LessClaim):
-            pairs, factor = [(claim.a, other) for other in claim.others], claim.factor
-        else:  # consecutive pairs of the listed order
-            pairs, factor = list(zip(claim.variants[:-1], claim.variants[1:], strict=True)), 1.0
-        out = []
-        for lo, hi in pairs:
-            a, b = _aligned([series[lo], series[hi]])
-            ratio = _ratio(means[lo], means[hi])
-            ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
-            out.append(check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi]))
-        return out
+    cell = _Cell(scenario, signal, {v: _per_seed(metrics, scenario, v, signal, metric) for v in variants})
+    if isinstance(claim, LessClaim):
+        return _ratio_checks(cell, [(claim.a, other) for other in claim.others], claim.factor)
+    if isinstance(claim, OrderClaim):  # consecutive pairs of the listed order
+        return _ratio_checks(cell, list(zip(claim.variants[:-1], claim.variants[1:], strict=True)), 1.0)
     if isinstance(claim, WithinClaim):
-        if claim.factor is not None:  # one check over all the variants
-            ratio = _ratio(max(means.values()), min(means.values()))
-            ci = bootstrap_ci(_aligned(list(series.values())), lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
-            return [check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor)]
-        first, out = variants[0], []
-        for other in variants[1:]:
-            x, y = _aligned([series[other], series[first]])
-            ratio = _ratio(means[other], means[first])
-            ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
-            out.append(check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other]))
-        return out
+        return _within_checks(cell, claim, variants)
     if isinstance(claim, NearPaperClaim):
-        out = []
-        for v in variants:
-            paper = _paper_value(exp, v, scenario, metric, signal)
-            if paper is None:
-                continue
-            d = exp.table.display.get(f"{metric}/{signal}")
-            scale = d.scale if d is not None else 1.0
-            ratio = means[v] * scale / paper
-            ci = bootstrap_ci([series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p)
-            lo, hi = 1 / claim.factor, claim.factor
-            out.append(Check(scenario, signal, {v: means[v], "paper": paper / scale}, ratio, ci,
-                             f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi))
-        return out
-    worst = float(series[claim.a].max()) if len(series[claim.a]) else math.nan  # AtMostClaim
-    return [check(worst, None, f"≤ {claim.value:g}", worst <= claim.value)]
+        return _near_paper_checks(exp, cell, claim, variants, metric)
+    worst = float(cell.series[claim.a].max()) if len(cell.series[claim.a]) else math.nan  # AtMostClaim
+    return [cell.check(worst, None, f"≤ {claim.value:g}", worst <= claim.value, variants)]
+
+
+def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> list[Check]:
+    """``less`` and ``order``: mean(lo) / mean(hi) < factor for each pair."""
+    out, means = [], cell.means
+    for lo, hi in pairs:
+        a, b = _aligned([cell.series[lo], cell.series[hi]])
+        ratio = _ratio(means[lo], means[hi])
+        ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
+        out.append(cell.check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi]))
+    return out
+
+
+def _within_checks(cell: _Cell, claim: WithinClaim, variants: list[str]) -> list[Check]:
+    """``within``: the largest over the smallest mean at most ``factor`` (one check), or each variant within
+    ``1 ± rtol`` of the first."""
+    means = cell.means
+    if claim.factor is not None:
+        ratio = _ratio(max(means.values()), min(means.values()))
+        ci = bootstrap_ci(_aligned(list(cell.series.values())),
+                          lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
+        return [cell.check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor, variants)]
+    first, out = variants[0], []
+    for other in variants[1:]:
+        x, y = _aligned([cell.series[other], cell.series[first]])
+        ratio = _ratio(means[other], means[first])
+        ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
+        out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other]))
+    return out
+
+
+def _near_paper_checks(exp, cell: _Cell, claim: NearPaperClaim, variants: list[str], metric: str) -> list[Check]:
+    """``near_paper``: each variant's mean (in the table's display scale) within a factor of the paper's value."""
+    out, means = [], cell.means
+    for v in variants:
+        paper = _paper_value(exp, v, cell.scenario, metric, cell.signal)
+        if paper is None:
+            continue
+        d = exp.table.display.get(f"{metric}/{cell.signal}")
+        scale = d.scale if d is not None else 1.0
+        ratio = means[v] * scale / paper
+        ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p)
+        lo, hi = 1 / claim.factor, claim.factor
+        out.append(Check(cell.scenario, cell.signal, {v: means[v], "paper": paper / scale}, ratio, ci,
+                         f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi))
+    return out
 
 
 def _num(x: float) -> str:
