@@ -412,41 +412,30 @@ def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
     return {e: v for e, v in per.items() if v in ("missing", "new")}
 
 
-def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False,
-                paired: bool = True) -> str:
-    """A markdown table of the cells, most severe first (for a PR comment or a CI log).
+ICONS = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
 
-    ``same`` and ``new`` cells are only counted, in a line under the table, unless ``all_cells``: a full
-    reference holds thousands of them, and a gate's reader needs the changed ones. An experiment present on
-    one side only is one row (``all_cells`` lists its cells). Unpaired, ``seeds`` is ``baseline/candidate`` runs.
-    """
-    whole = {} if all_cells else one_sided_experiments(table)
-    shown = table if all_cells else table[~table["verdict"].isin(QUIET) & ~table["experiment"].isin(list(whole))]
-    lines = [f"### {title}: {headline(table)}", ""]
-    lines.append("| verdict | experiment | scenario | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
-    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
-    icons = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
-    for name, verdict in sorted(whole.items(), key=lambda kv: (SEVERITY[kv[1]], kv[0])):
-        rows = table[table["experiment"] == name]
-        n_claims = int((rows["metric"] == "claim").sum())
-        what = f"whole experiment, only in the {ONLY_IN[verdict]}: {len(rows) - n_claims} cell(s), {n_claims} claim(s)"
-        lines.append(f"| {icons[verdict]} | {name} | – | – | {what} | – | – | – | – | – | – |")
-    for r in shown.itertuples(index=False):
-        if r.metric == "claim":  # a claim of the paper (claims.md): holds or fails on each side
-            held = {1.0: "holds", 0.0: "fails"}
-            lines.append(f"| {icons[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | "
-                         f"{held.get(r.baseline, '–')} | {held.get(r.candidate, '–')} | – | – | – |")
-            continue
-        rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
-        if np.isnan(r.ci_low):
-            ci = "–"
-        elif not np.isnan(r.rel_ci_low):  # in the units of the change column
-            ci = f"[{r.rel_ci_low:+.1%}, {r.rel_ci_high:+.1%}]"
-        else:
-            ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
-        seeds = r.n if paired else f"{r.n}/{r.n_candidate}"
-        lines.append(f"| {icons[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
-                     f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {seeds} |")
+
+def _row(r, paired: bool) -> str:
+    """One cell of the comparison as a markdown row; a claim (``metric == "claim"``) shows holds/fails per side."""
+    if r.metric == "claim":
+        held = {1.0: "holds", 0.0: "fails"}
+        return (f"| {ICONS[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | "
+                f"{held.get(r.baseline, '–')} | {held.get(r.candidate, '–')} | – | – | – |")
+    rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
+    if np.isnan(r.ci_low):
+        ci = "–"
+    elif not np.isnan(r.rel_ci_low):  # in the units of the change column
+        ci = f"[{r.rel_ci_low:+.1%}, {r.rel_ci_high:+.1%}]"
+    else:
+        ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
+    seeds = r.n if paired else f"{r.n}/{r.n_candidate}"
+    return (f"| {ICONS[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
+            f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {seeds} |")
+
+
+def _footnotes(table: pd.DataFrame, shown: pd.DataFrame, whole: dict[str, str], paired: bool) -> list[str]:
+    """The lines under the table: the cells not listed, seeds only one side ran, the unpaired caveats."""
+    lines = []
     rest = table[~table["experiment"].isin(list(whole))]
     if len(rest) > len(shown):
         counts = rest["verdict"].value_counts()
@@ -464,6 +453,29 @@ def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cel
             note = (f"{single} cell(s) have a single run on a side: unpaired, one run cannot tell a change from the "
                     "noise, so they count as same (run 2 or more --seeds).")
             lines += ["", note]
+    return lines
+
+
+def to_markdown(table: pd.DataFrame, title: str = "marinebench compare", all_cells: bool = False,
+                paired: bool = True) -> str:
+    """A markdown table of the cells, most severe first (for a PR comment or a CI log).
+
+    ``same`` and ``new`` cells are only counted, in a line under the table, unless ``all_cells``: a full
+    reference holds thousands of them, and a gate's reader needs the changed ones. An experiment present on
+    one side only is one row (``all_cells`` lists its cells). Unpaired, ``seeds`` is ``baseline/candidate`` runs.
+    """
+    whole = {} if all_cells else one_sided_experiments(table)
+    shown = table if all_cells else table[~table["verdict"].isin(QUIET) & ~table["experiment"].isin(list(whole))]
+    lines = [f"### {title}: {headline(table)}", ""]
+    lines.append("| verdict | experiment | scenario | variant | signal | metric | baseline | candidate | change | 95% CI of change | seeds |")
+    lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+    for name, verdict in sorted(whole.items(), key=lambda kv: (SEVERITY[kv[1]], kv[0])):
+        rows = table[table["experiment"] == name]
+        n_claims = int((rows["metric"] == "claim").sum())
+        what = f"whole experiment, only in the {ONLY_IN[verdict]}: {len(rows) - n_claims} cell(s), {n_claims} claim(s)"
+        lines.append(f"| {ICONS[verdict]} | {name} | – | – | {what} | – | – | – | – | – | – |")
+    lines += [_row(r, paired) for r in shown.itertuples(index=False)]
+    lines += _footnotes(table, shown, whole, paired)
     for attr in ("renamed", "machine_note"):
         if table.attrs.get(attr):
             lines += ["", table.attrs[attr]]
