@@ -27,7 +27,19 @@ def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tupl
     return names, labels, runs
 
 
+def _autoscale(ax, series: list[np.ndarray], late) -> None:
+    """Fit the y axis to the series' finite values at the ``late`` samples (after the start-up transient)."""
+    data = np.concatenate([x[late] for x in series])
+    data = data[np.isfinite(data)]
+    if data.size:
+        lo, hi = data.min(), data.max()
+        pad = 0.1 * (hi - lo) or 1e-12
+        ax.set_ylim(lo - pad, hi + pad)
+
+
 def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
+    """A row per signal (and one of its errors below it with ``spec.error``): the actual trajectory and each
+    variant's estimate, or, for a world signal with no estimate (a control input), each variant's."""
     names, labels, runs = seed0_runs(exp, spec, run_variant, run_seed)
     rows = len(spec.signals) * (2 if spec.error else 1)
     fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True, squeeze=False)
@@ -38,31 +50,23 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
     ref = int(np.flatnonzero(run_seed == 0)[0])
     after = spec.ylim_after if spec.ylim_after is not None else getattr(exp.metrics[0], "t_start", 0.0)
     late = (t >= after) if spec.t_range is None else (t >= after) & mask
-
-    def autoscale(ax, series):
-        data = np.concatenate([x[late] for x in series])
-        data = data[np.isfinite(data)]
-        if data.size:
-            lo, hi = data.min(), data.max()
-            pad = 0.1 * (hi - lo) or 1e-12
-            ax.set_ylim(lo - pad, hi + pad)
-
+    curves = [(labels[name], b) for name, b in zip(names, runs)]
     for i, sig in enumerate(spec.signals):
         ax = axes[i * (2 if spec.error else 1)]
         if sig in est:  # truth ("actual") and each variant's estimate (or reference)
             ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
             series = [truth[sig][:, ref]] + [est[sig][:, b] for b in runs]
-            for name, b in zip(names, runs):
-                ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=labels[name])
+            for label, b in curves:
+                ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=label)
                 if spec.error:
-                    axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=labels[name])
+                    axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=label)
             if spec.error:
-                autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs])
+                _autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs], late)
         else:  # a world signal with no estimate (e.g. a control input): one curve per variant
             series = [truth[sig][:, b] for b in runs]
-            for name, b in zip(names, runs):
-                ax.plot(t[mask], truth[sig][mask, b], lw=1.0, label=labels[name])
-        autoscale(ax, series)
+            for label, b in curves:
+                ax.plot(t[mask], truth[sig][mask, b], lw=1.0, label=label)
+        _autoscale(ax, series, late)
         ax.set_ylabel(f"{NAMES.get(sig, sig)} [{UNITS.get(sig, '-')}]")
         ax.legend(loc="best", fontsize=7)
         if spec.error:

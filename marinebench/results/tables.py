@@ -141,15 +141,10 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     side_by_side = paper is not None and not multi  # the paper's column beside each of ours
     columns = [(name, sig) for name in names for sig in signals]
 
-    header = ["variant"]
-    for name, sig in columns:
-        d = display.get(f"{name}/{sig}")
-        label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
-        header += [f"{name} ({label})" if multi else f"{label} ours"] + ([f"{label} paper"] if side_by_side else [])
     lines = [f"## {title or f'{exp.name}: {names[0]}'}", ""]
     lines += _preamble(exp, "; ".join(_window(exp, n) for n in names),
                        f"scenario `{exp.scenario.name}`, root seed {exp.seed}", paper)
-    lines += _grid(header)
+    lines += _grid(_variant_header(columns, display, multi, side_by_side))
 
     def row(label: str, cell, paper_key: str) -> str:
         cells = [label]
@@ -168,15 +163,29 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     lines += [row(v.name, ours(v.name), v.name) for v in exp.variants]
     if spec is not None and spec.relative is not None:
         a, b = spec.relative
-
-        def change(name, sig):
-            if (a, sig, name) not in s.index or (b, sig, name) not in s.index:
-                return "–"
-            pct = 100 * (s.loc[(a, sig, name), "mean"] / s.loc[(b, sig, name), "mean"] - 1)
-            return "–" if math.isnan(pct) else f"{pct:+.1f}"
-
-        lines.append(row(f"{a} vs {b} [%]", change, f"{a}_vs_{b}"))
+        lines.append(row(f"{a} vs {b} [%]", _change_in_percent(s, a, b), f"{a}_vs_{b}"))
     lines += ["", "Variants:", ""]
     for v in exp.variants:
         lines.append(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer) if t is not None))
     return "\n".join(lines) + "\n"
+
+
+def _variant_header(columns: list[tuple[str, str]], display, multi: bool, side_by_side: bool) -> list[str]:
+    """``variant``, then a column per (metric, signal): named by the metric when there are several, else 'ours',
+    each followed by the paper's when ``side_by_side``."""
+    header = ["variant"]
+    for name, sig in columns:
+        d = display.get(f"{name}/{sig}")
+        label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
+        header += [f"{name} ({label})" if multi else f"{label} ours"] + ([f"{label} paper"] if side_by_side else [])
+    return header
+
+
+def _change_in_percent(s: pd.DataFrame, a: str, b: str):
+    """The cells of ``table.relative``'s row: variant a's mean vs b's in % ('–' where either is missing)."""
+    def change(name, sig):
+        if (a, sig, name) not in s.index or (b, sig, name) not in s.index:
+            return "–"
+        pct = 100 * (s.loc[(a, sig, name), "mean"] / s.loc[(b, sig, name), "mean"] - 1)
+        return "–" if math.isnan(pct) else f"{pct:+.1f}"
+    return change
