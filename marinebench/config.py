@@ -419,25 +419,30 @@ class Experiment(BaseModel):
         """A multi-scenario experiment: check the scenario references, then each part as a single experiment."""
         if not self.scenarios:
             raise ValueError("'scenarios' is empty")
+        have = ", ".join(self.scenarios)
         for i, v in enumerate(self.variants):
             unknown = set(v.scenarios or []) - set(self.scenarios)
             if unknown:
-                raise ValueError(f"variants.{i}.scenarios: unknown scenarios {sorted(unknown)} (have: {', '.join(self.scenarios)})")
+                raise ValueError(f"variants.{i}.scenarios: unknown scenarios {sorted(unknown)} (have: {have})")
         for f in self.figures:
             if f.scenario is not None and f.scenario not in self.scenarios:
-                raise ValueError(f"figures: {f.file} names unknown scenario '{f.scenario}' (have: {', '.join(self.scenarios)})")
+                raise ValueError(f"figures: {f.file} names unknown scenario '{f.scenario}' (have: {have})")
         if self.sweep is not None:
-            name = self.sweep_scenario()
-            if name not in self.scenarios:
-                raise ValueError(f"sweep.scenario: unknown scenario '{name}' (have: {', '.join(self.scenarios)})")
-            if self.sweep.variant not in {v.name for v in self.part(name).variants}:
-                raise ValueError(f"sweep.variant '{self.sweep.variant}' does not run on scenario '{name}'")
+            self._check_study_sweep(have)
         for name in self.scenarios:
             part = self.part(name)
             if not part.variants:
                 raise ValueError(f"no variant runs on scenario '{name}'")
             part._check_single()
         return self
+
+    def _check_study_sweep(self, have: str) -> None:
+        """A study's sweep runs on one of its scenarios, with a variant that runs there."""
+        name = self.sweep_scenario()
+        if name not in self.scenarios:
+            raise ValueError(f"sweep.scenario: unknown scenario '{name}' (have: {have})")
+        if self.sweep.variant not in {v.name for v in self.part(name).variants}:
+            raise ValueError(f"sweep.variant '{self.sweep.variant}' does not run on scenario '{name}'")
 
     @property
     def scenario_names(self) -> list[str]:
@@ -496,10 +501,26 @@ class Experiment(BaseModel):
                 raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
 
     def _check_single(self) -> Experiment:
+        """A single-scenario experiment (or one scenario's part of a study): unique names, metrics that apply to
+        the world, and a table, sweep and figures that name its variants and metrics."""
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"duplicate variant names: {sorted(dup)}")
+        self._check_metrics()
+        kinds = [m.label for m in self.metrics]
+        if self.table is not None:
+            self._check_table(names, kinds)
+        if self.sweep is not None:
+            self._check_sweep(names, kinds)
+        for f in self.figures:
+            unknown = set(f.variants or []) - set(names)
+            if unknown:
+                raise ValueError(f"figure {f.file} names unknown variants {sorted(unknown)}")
+        return self
+
+    def _check_metrics(self) -> None:
+        """Unique metric names, closed-loop metrics on closed-loop worlds only, windows inside the run."""
         kinds = [m.label for m in self.metrics]
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"metric names must be unique: {kinds}")
@@ -507,16 +528,11 @@ class Experiment(BaseModel):
             if m.kind in ("int", "recovery") and self.scenario.kind != "rov_tracking":
                 raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
         self.check_windows(self.scenario.horizon)
-        if self.table is not None:
-            self._check_table(names, kinds)
-        if self.sweep is not None:
-            if self.sweep.variant not in names:
-                raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
-            for metric in self.sweep.shown:
-                if metric not in kinds:
-                    raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")
-        for f in self.figures:
-            unknown = set(f.variants or []) - set(names)
-            if unknown:
-                raise ValueError(f"figure {f.file} names unknown variants {sorted(unknown)}")
-        return self
+
+    def _check_sweep(self, names: list[str], kinds: list[str]) -> None:
+        """The sweep's variant is one of the experiment's, and the metrics it shows are among its metrics."""
+        if self.sweep.variant not in names:
+            raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
+        for metric in self.sweep.shown:
+            if metric not in kinds:
+                raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")
