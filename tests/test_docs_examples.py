@@ -1,10 +1,10 @@
-"""The README's examples, run as documented, give the figures it quotes.
+"""The examples of the README and docs/commands.md, run as documented, give the figures those pages quote.
 
 `test_docs_quote_results.py` checks the quotes of committed results; these examples write nothing under
-`results/`, so each is run here at its documented size (the first experiment: 2 variants x 10 seeds of 60 s, its
-compare and its 8-point sweep; the custom observer's two compared variants x 5 seeds), about a minute on one core.
-A change that moves one of them (as the Bejarano LMI objective did once, silently turning a quoted "71 % below"
-into 19 % above) fails here and names the sentence.
+`results/`, so each is run here at its documented size: the first experiment (2 variants x 10 seeds of 60 s), its
+compare and its 8-point sweep; the custom observer's two compared variants and the custom controller's example
+(5 seeds each). About 1.5 minutes on one core. A change that moves one of them (as the Bejarano LMI objective
+did once, silently turning a quoted "71 % below" into 19 % above) fails here and names the sentence.
 """
 
 from __future__ import annotations
@@ -98,3 +98,15 @@ def test_the_custom_observer_example_is_as_quoted(tmp_path):
                mean[("earth_eso_w5", "sigma_u")], mean[("liu_eps0.2", "sigma_u")]]
     for doc_file in ("README.md", "docs/commands.md"):
         _quote_holds(Quote(doc_file, "(ω = 5 ↔ ε = 0.2: e_u {} vs {}, e_σu\n{} vs {}, 5 seeds)", lambda: figures))
+
+
+def test_the_custom_controller_example_is_as_quoted(tmp_path):
+    """docs/commands.md: the example PID's depth RMSE on S1 beside S+RISE's and RISE's (5 seeds, as committed)."""
+    config = ROOT / "examples" / "custom_controller" / "pid_s1.yaml"
+    res = runner.invoke(app, ["run", str(config), "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    m = pd.read_csv(tmp_path / "pid_s1" / "metrics.csv")
+    assert m["seed"].nunique() == 5
+    rmse = m[(m.metric == "rmse") & (m.signal == "depth")].groupby("variant")["value"].mean()
+    _quote_holds(Quote("docs/commands.md", "its untuned default tracks depth to {} m RMSE (S+RISE {}, RISE {};",
+                       lambda: [rmse["pid"], 100 * rmse["srise"], 100 * rmse["rise"]]))
