@@ -226,6 +226,22 @@ def test_variant_comparison_inside_one_run(tmp_path, base_values):
     assert "| b vs a | u | std |" in res.output and "1 worse, 0 better, 1 same" in res.output
 
 
+def test_names_that_look_like_numbers_or_blanks_stay_names(tmp_path, base_values):
+    """A config, scenario or variant may be named "123", "1" or "NA" (config.NAME): read back from metrics.csv they
+    stay names, not numbers (before: a traceback in report and compare --variants) or blanks (a refusal)."""
+    vals = {("1" if v == "a" else "NA", s): x for (v, s), x in base_values.items()}
+    vals[("NA", "u")] = vals[("1", "u")] * 1.5
+    for side in ("base", "cand"):
+        write_result(tmp_path / side, "123", vals)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base" / "123"), "--variants", "1", "NA"])
+    assert res.exit_code == 1 and "| **WORSE** | 123 | scen | NA vs 1 | u | std |" in res.output, res.output
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 0 and "0 worse, 0 better, 4 same" in res.output, res.output
+    res = runner.invoke(app, ["report", str(tmp_path / "cand"), "--out", str(tmp_path / "r.html")])
+    assert res.exit_code == 0, res.output
+    assert 'href="#123"' in (tmp_path / "r.html").read_text()
+
+
 def test_bootstrap_ci_coverage_on_synthetic_data():
     rng = np.random.default_rng(3)
     hits = 0

@@ -31,6 +31,7 @@ from marinebench.errors import ClusterError, ConfigError
 from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
+from marinebench.results.stored import read_tidy
 
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
 
@@ -466,7 +467,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         raise ClusterError(f"{pool.option}: chunk {exc.chunk} failed on a worker ({type(exc.cause).__name__}: "
                            f"{exc.cause}); the finished chunks are kept in {partial}, rerun the same command to "
                            "resume") from None
-    return pd.concat([pd.read_csv(path) for path in paths], ignore_index=True), wall, len(pending)
+    return pd.concat([read_tidy(path) for path in paths], ignore_index=True), wall, len(pending)
 
 
 CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)

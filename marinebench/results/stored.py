@@ -13,6 +13,11 @@ from marinebench.errors import ConfigError, MarinebenchError
 
 #: Columns every ``metrics.csv`` written by ``run`` or ``sweep`` has (``status`` is optional: older files).
 METRICS_COLUMNS = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value"]
+#: The columns of names, read as text: a config, scenario or variant may be named "1", "1e3" or "NA" (config.NAME),
+#: and must keep that name rather than become a number or a blank.
+NAME_COLUMNS = ("experiment", "scenario", "variant", "signal", "metric", "status", "gnss", "param", "param2")
+#: What a number column reads as NaN (a diverged run's value is written blank).
+MISSING = ["", "nan", "NaN", "-nan", "NA", "N/A", "null"]
 
 
 class StoredResultError(MarinebenchError):
@@ -29,11 +34,19 @@ def read_text(path: Path) -> str:
         raise StoredResultError(f"{path}: cannot read ({exc.strerror})") from None
 
 
+def read_tidy(path: Path, nrows: int | None = None) -> pd.DataFrame:
+    """A tidy CSV as ``run`` and ``sweep`` write it: :data:`NAME_COLUMNS` as text, blanks (:data:`MISSING`) as NaN
+    in the other columns only."""
+    columns = pd.read_csv(path, nrows=0).columns
+    return pd.read_csv(path, nrows=nrows, dtype={c: str for c in NAME_COLUMNS if c in columns}, keep_default_na=False,
+                       na_values={c: MISSING for c in columns if c not in NAME_COLUMNS})
+
+
 def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None = None) -> pd.DataFrame:
     """A ``metrics.csv`` with at least :data:`METRICS_COLUMNS` (or ``usecols``) and numeric ``seed``/``value``."""
     need = usecols or METRICS_COLUMNS
     try:
-        df = pd.read_csv(path, nrows=nrows)
+        df = read_tidy(path, nrows=nrows)
     except (OSError, ValueError, pd.errors.ParserError) as exc:  # EmptyDataError and decoding errors are ValueErrors
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise StoredResultError(f"{path}: not a readable CSV ({first})") from None
@@ -44,7 +57,8 @@ def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None
         if col in need and not pd.api.types.is_numeric_dtype(df[col]):
             raise StoredResultError(f"{path}: column '{col}' is not numeric")
     if usecols is None:  # one value per cell and seed, or the paired comparison has nothing to pair
-        if (blank := df[METRICS_COLUMNS[:-1]].isna().any(axis=1)).any():  # a value may be nan (a diverged run)
+        keys = df[METRICS_COLUMNS[:-1]]  # a value may be nan (a diverged run), a key may not
+        if (blank := keys.isna().any(axis=1) | keys.eq("").any(axis=1)).any():
             raise StoredResultError(f"{path}: line {int(blank.to_numpy().argmax()) + 2}: a row without its "
                                     f"{', '.join(METRICS_COLUMNS[:-1])} (a truncated file?)")
         twice = df[df.duplicated(METRICS_COLUMNS[:-1], keep=False)]
