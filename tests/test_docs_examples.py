@@ -20,7 +20,7 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 
 from .conftest import ROOT
-from .test_docs_quote_results import Quote, agrees, quoted_numbers
+from .test_docs_quote_results import Quote, assert_quote_holds
 
 runner = CliRunner()
 FIRST = ROOT / "examples" / "first_experiment" / "asv_observers.yaml"
@@ -42,13 +42,6 @@ def first(tmp_path_factory) -> dict:
             "sweep": pd.read_csv(out / "asv_observers_sweep_n8_3seeds" / "metrics.csv")}
 
 
-def _quote_holds(quote: Quote) -> None:
-    printed, computed = quoted_numbers(quote), quote.computed()
-    assert len(printed) == len(computed), f"{quote}: {len(printed)} numbers quoted, {len(computed)} computed"
-    wrong = [f"{p} (now {c:.6g})" for p, c in zip(printed, computed) if not agrees(p, c)]
-    assert not wrong, f"{quote}: " + "; ".join(wrong)
-
-
 def test_the_first_experiment_writes_what_the_readme_lists(first):
     folder = first["out"] / "asv_observers"
     for name in ("table.md", "metrics.csv", "manifest.json", "config.resolved.yaml", "figures/surge.png"):
@@ -59,9 +52,9 @@ def test_the_first_experiment_writes_what_the_readme_lists(first):
 def test_the_first_experiments_compare_is_as_quoted(first):
     cells = first["cells"]
     pct = {s: 100 * cells[s]["rel_change"] for s in cells}
-    _quote_holds(Quote("README.md", "finds the proposed estimator's σ_u and σ_v errors {} % and\n{} % below",
+    assert_quote_holds(Quote("README.md", "finds the proposed estimator's σ_u and σ_v errors {} % and\n{} % below",
                        lambda: [-pct["sigma_u"], -pct["sigma_v"]]))
-    _quote_holds(Quote("README.md", "its yaw-rate and σ_r errors {} % and\n{} % above",
+    assert_quote_holds(Quote("README.md", "its yaw-rate and σ_r errors {} % and\n{} % above",
                        lambda: [pct["r"], pct["sigma_r"]]))
     verdicts = {s: c["verdict"] for s, c in cells.items()}
     assert verdicts == {"sigma_u": "better", "sigma_v": "better", "u": "same", "v": "same",
@@ -75,7 +68,7 @@ def test_the_first_experiments_sweep_is_lowest_where_quoted(first):
     assert m["param_value"].min() == 0.5 and m["param_value"].max() == 5.0
     curve = m[m.metric == "std"].groupby(["signal", "param_value"])["value"].mean()
     lowest = [float(curve[s].idxmin()) for s in ("u", "sigma_u")]
-    _quote_holds(Quote("README.md", "where both e_u and e_σu are\nlowest at δp = {}: at", lambda: lowest[:1]))
+    assert_quote_holds(Quote("README.md", "where both e_u and e_σu are\nlowest at δp = {}: at", lambda: lowest[:1]))
     assert lowest[0] == lowest[1], lowest
 
 
@@ -97,7 +90,7 @@ def test_the_custom_observer_example_is_as_quoted(tmp_path):
     figures = [mean[("earth_eso_w5", "u")], mean[("liu_eps0.2", "u")],
                mean[("earth_eso_w5", "sigma_u")], mean[("liu_eps0.2", "sigma_u")]]
     for doc_file in ("README.md", "docs/commands.md"):
-        _quote_holds(Quote(doc_file, "(ω = 5 ↔ ε = 0.2: e_u {} vs {}, e_σu\n{} vs {}, 5 seeds)", lambda: figures))
+        assert_quote_holds(Quote(doc_file, "(ω = 5 ↔ ε = 0.2: e_u {} vs {}, e_σu\n{} vs {}, 5 seeds)", lambda: figures))
 
 
 def test_the_custom_controller_example_is_as_quoted(tmp_path):
@@ -108,5 +101,5 @@ def test_the_custom_controller_example_is_as_quoted(tmp_path):
     m = pd.read_csv(tmp_path / "pid_s1" / "metrics.csv")
     assert m["seed"].nunique() == 5
     rmse = m[(m.metric == "rmse") & (m.signal == "depth")].groupby("variant")["value"].mean()
-    _quote_holds(Quote("docs/commands.md", "its untuned default tracks depth to {} m RMSE (S+RISE {}, RISE {};",
+    assert_quote_holds(Quote("docs/commands.md", "its untuned default tracks depth to {} m RMSE (S+RISE {}, RISE {};",
                        lambda: [rmse["pid"], 100 * rmse["srise"], 100 * rmse["rise"]]))
