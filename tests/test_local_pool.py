@@ -2,6 +2,10 @@
 batches run, resumable after a failed batch, and clear refusals."""
 
 import json
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -88,3 +92,36 @@ def test_ctrl_c_stops_the_running_batches_instead_of_waiting_for_them():
         pool.pool.submit(time.sleep, 30)  # a batch that would keep the shutdown waiting for 30 s, then exit 0
         raise KeyboardInterrupt  # the user presses Ctrl-C while it runs
     assert [w.exitcode for w in workers] == [-signal.SIGTERM]  # stopped, not waited for
+
+
+_KILLED_PARENT = """
+import os, signal, time
+from marinebench.experiments.cluster import LocalPool
+pool = LocalPool(2)
+pool.pool.submit(time.sleep, 120)  # a chunk still running when the parent dies
+print(*(p.pid for p in pool.pool._processes.values()), flush=True)
+os.kill(os.getpid(), signal.SIGKILL)  # as kill -9 or the OOM killer would: no handler, no shutdown
+"""
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state != "Z"  # an orphan that exited may stay a zombie where nothing reaps it
+
+
+def test_workers_end_when_the_process_that_made_the_pool_is_killed(tmp_path):
+    pids, errors = tmp_path / "workers.txt", tmp_path / "stderr.txt"
+    with pids.open("w") as out, errors.open("w") as err:  # files: orphans holding a pipe would keep run() waiting
+        done = subprocess.run([sys.executable, "-c", _KILLED_PARENT], stdout=out, stderr=err, check=False, timeout=60)
+    workers = [int(pid) for pid in pids.read_text().split()]
+    assert done.returncode == -9 and len(workers) == 2, errors.read_text()
+    deadline = time.monotonic() + 20
+    while any(map(_running, workers)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    left = [pid for pid in workers if _running(pid)]
+    for pid in left:  # do not leave them behind on a failure
+        subprocess.run(["kill", "-9", str(pid)], check=False)
+    assert not left, "orphaned workers still running after their parent was killed"

@@ -22,6 +22,8 @@ import multiprocessing
 import os
 import signal
 import sys
+import threading
+import time
 import uuid
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -33,6 +35,7 @@ from marinebench.provenance import package_digest
 
 WORKER_TRIM_THRESHOLD = 2**30  # bytes; glibc keeps freed memory below this instead of returning it at once
 POLL_S = 0.25  # how often the progress bar hears from local workers
+PARENT_POLL_S = 0.5  # how often a local worker checks that the process that made its pool is still there
 
 
 def available_cores() -> int:
@@ -51,11 +54,21 @@ class ChunkFailed(Exception):
 _steps = None  # in a LocalPool worker: the pool's shared count of simulated steps
 
 
-def _init_worker(counter) -> None:
+def _exit_with(parent: int) -> None:
+    """End this worker as soon as ``parent``, the process that made its pool, is gone (``kill -9``, the OOM
+    killer): the results come back to the parent, so nothing is lost, and an orphan would otherwise finish its
+    chunk for nobody and then wait on the pool's queue for ever."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
+
+
+def _init_worker(counter, parent: int) -> None:
     from threadpoolctl import threadpool_limits
 
     global _steps
     _steps = counter
+    threading.Thread(target=_exit_with, args=(parent,), name="exit-with-parent", daemon=True).start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group: the parent stops us
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the CLI's handler (forked): the parent's terminate() ends us
     # One BLAS thread per worker, as Dask's and joblib's workers have: the workers fill the cores already, and
@@ -87,7 +100,8 @@ class LocalPool:
         ctx = multiprocessing.get_context("fork" if sys.platform == "linux" else None)
         self.workers = workers
         self.steps = ctx.Value("q", 0)
-        self.pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker, initargs=(self.steps,))
+        self.pool = ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
+                                        initargs=(self.steps, os.getpid()))
         self.pool.submit(int).result()  # start every worker now (fork launches them all on the first task)
 
     def describe(self) -> str:
