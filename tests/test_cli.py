@@ -31,6 +31,7 @@ def test_run_writes_every_output(tiny_config, tmp_path):
     assert (d / "figures" / "u.png").stat().st_size > 1000 and (d / "figures" / "sv.png").exists()
     table = (d / "table.md").read_text()
     assert "e_u paper" in table and "0.09" in table and "not computed" in table
+    assert "Mean over 2 seeds with the 95% Student-t interval in brackets" in table
     resolved = yaml.safe_load((d / "config.resolved.yaml").read_text())
     assert resolved["scenario"]["dt"] == 0.01 and resolved["variants"][1]["observer"]["rho"] is None
 
@@ -43,6 +44,15 @@ def test_seed_seeds_and_set_options(tiny_config, tmp_path):
     assert resolved["seed"] == 9 and resolved["seeds"] == 3
     assert resolved["variants"][0]["observer"]["eps"] == 0.3
     assert pd.read_csv(tmp_path / "tiny" / "metrics.csv")["seed"].nunique() == 3
+
+
+def test_one_seed_has_no_interval_and_its_table_says_so(tiny_config, tmp_path):
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--quiet", "--seeds", "1"])
+    assert res.exit_code == 0, res.output
+    table = (tmp_path / "tiny" / "table.md").read_text()
+    assert "One seed, so no interval" in table and "interval in brackets" not in table
+    rows = [line for line in table.splitlines() if line.startswith("| liu_eps")]
+    assert rows and not any("[" in row for row in rows)
 
 
 def test_rerun_replaces_results_atomically(tiny_config, tmp_path):

@@ -74,7 +74,9 @@ def _shown(r: pd.Series, display) -> pd.Series:
 def _preamble(exp: Experiment, windows: str, where: str, paper) -> list[str]:
     """The lines under a table's title: what 'ours' is (the metrics' windows, seeds, CI) and, when the table
     carries the paper's values, that those columns are copied, not computed."""
-    lines = [f"Ours: {windows}. Mean over {exp.seeds} seed(s) with the 95% Student-t interval in brackets; {where}."]
+    over = (f"Mean over {exp.seeds} seeds with the 95% Student-t interval in brackets" if exp.seeds > 1
+            else "One seed, so no interval")
+    lines = [f"Ours: {windows}. {over}; {where}."]
     if paper is not None:
         units = paper.units
         lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
