@@ -46,13 +46,17 @@ def test_seed_seeds_and_set_options(tiny_config, tmp_path):
     assert pd.read_csv(tmp_path / "tiny" / "metrics.csv")["seed"].nunique() == 3
 
 
-def test_one_seed_has_no_interval_and_its_table_says_so(tiny_config, tmp_path):
-    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path), "--quiet", "--seeds", "1"])
+def test_one_seed_has_no_interval_and_its_table_and_claims_say_so(tmp_path):
+    res = runner.invoke(app, ["run", str(ROOT / "configs" / "bejarano_fig6.yaml"), "--out", str(tmp_path), "--quiet",
+                              "--seeds", "1", "--profile", "quick"])
     assert res.exit_code == 0, res.output
-    table = (tmp_path / "tiny" / "table.md").read_text()
+    table = (tmp_path / "bejarano_fig6" / "table.md").read_text()
     assert "One seed, so no interval" in table and "interval in brackets" not in table
-    rows = [line for line in table.splitlines() if line.startswith("| liu_eps")]
-    assert rows and not any("[" in row for row in rows)
+    rows = [line for line in table.splitlines() if line.startswith("| proposed_dpsi")]
+    assert len(rows) == 3 and not any("[" in row for row in rows)
+    claims = (tmp_path / "bejarano_fig6" / "claims.md").read_text()
+    assert "Checked on one seed, root seed 2024" in claims and "; one seed gives no interval." in claims
+    assert "bootstrap interval" not in claims
 
 
 def test_rerun_replaces_results_atomically(tiny_config, tmp_path):

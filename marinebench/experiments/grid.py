@@ -26,7 +26,7 @@ from matplotlib.colors import LogNorm
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
-from marinebench.results.claims import Check, bootstrap_note, format_check
+from marinebench.results.claims import Check, format_check, on_seeds, statistic_note
 
 Surfaces = dict[tuple[str, str], pd.DataFrame]
 
@@ -198,10 +198,10 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
     """``claims.md`` of a grid sweep: per claim the slices of the other parameter where it holds and where it
     fails, then every check. ``own``: the swept variant's own value of each parameter (marked), or None."""
     lines = [f"## Claims along the grid: sweep of {exp.name}", "",
-             (f"Each claim of the sweep about one of the two parameters, checked as in a one-at-a-time sweep on our means "
-              f"over {exp.seeds} seed(s) (root seed {exp.seed}) along its parameter, on every slice of the other. The "
+             (f"Each claim of the sweep about one of the two parameters, checked as in a one-at-a-time sweep on "
+              f"{on_seeds(exp.seeds)} (root seed {exp.seed}) along its parameter, on every slice of the other. The "
               "paper states each claim at its own tuning of the other parameter, so this maps where the statement holds; "
-              "it is not a verdict. " + bootstrap_note), "",
+              "it is not a verdict. " + statistic_note(exp.seeds)), "",
              "| # | claim | source | metric | along | holds at | fails at |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)

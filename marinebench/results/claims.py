@@ -204,9 +204,16 @@ def summary_line(results: list[ClaimResult]) -> str:
     return f"{sum(r.holds for r in results)} of {len(results)} claims hold" + (f", {skipped} not checked" if skipped else "")
 
 
-bootstrap_note = ("The statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
-                  "Spearman's ρ for trends), with a 95% bootstrap interval over seeds (the same seeds resampled for every "
-                  "variant).")
+def on_seeds(seeds: int) -> str:
+    """What a claims.md's checks ran on, for its preamble."""
+    return f"our means over {seeds} seeds" if seeds > 1 else "one seed"
+
+
+def statistic_note(seeds: int) -> str:
+    """The sentence of a claims.md's preamble on the statistic and its interval (none from one seed)."""
+    return ("The statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
+            "Spearman's ρ for trends)" + (", with a 95% bootstrap interval over seeds (the same seeds resampled for "
+                                          "every variant)." if seeds > 1 else "; one seed gives no interval."))
 
 
 def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario", title: str | None = None) -> str:
@@ -214,8 +221,8 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
     the column of scenarios, or of groups for a sweep)."""
     title = title or (exp.table.title if exp.table is not None else exp.name)
     lines = [f"## Claims checked: {title}", "",
-             (f"Checked on our means over {exp.seeds} seed(s), root seed {exp.seed}, per {where} and signal. "
-              f"{bootstrap_note} A claim holds when every check holds on the means."), "",
+             (f"Checked on {on_seeds(exp.seeds)}, root seed {exp.seed}, per {where} and signal. "
+              f"{statistic_note(exp.seeds)} A claim holds when every check holds on the means."), "",
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
