@@ -412,7 +412,9 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     from marinebench.sim.engine import check_step
 
     plant = plant_of(exp.scenario)  # the model every variant's observer is designed on
-    groups = [g for i, v in zip(positions, exp.variants) if (g := _preflight_variant(exp, file, i, v, plant)) is not None]
+    named = [(v.name, g) for i, v in zip(positions, exp.variants)
+             if (g := _preflight_variant(exp, file, i, v, plant)) is not None]
+    groups = [g for _, g in named]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
     with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
@@ -422,7 +424,8 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
         try:
             check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
         except StiffnessError as exc:
-            raise ConfigError(file, f"{key}.dt", str(exc)) from None
+            fastest = max(named, key=lambda pair: pair[1].observer.max_rate())[0]
+            raise ConfigError(file, f"{key}.dt", f"{exc} (the fastest: variant {fastest!r})") from None
 
 
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:

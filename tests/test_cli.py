@@ -108,7 +108,10 @@ BAD = {
                          "scenario: scenario file not found: nowhere.yaml (relative to the file's folder: looked for /"),
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
+    # the step is the scenario's, and the message names the variant whose poles need the smaller step
     "stiff": (lambda d: d["scenario"].update(dt=0.2), "scenario.dt: dt=0.2 s is too large"),
+    "stiff_variant": (lambda d: d["variants"][1]["observer"].update(delta_p1=500.0),
+                      "(the fastest: variant 'proposed_d1.2')"),
     # YAML's .inf passes a bound such as gt=0; before, it failed deep in the design with a traceback
     "not_finite": (lambda d: d["variants"][1]["observer"].update(delta_psi1=float("inf")),
                    "variants.1.observer.delta_psi1: Input should be a finite number"),
