@@ -507,8 +507,7 @@ class Experiment(BaseModel):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"duplicate variant names: {sorted(dup)}")
-        self._check_metrics()
-        kinds = [m.label for m in self.metrics]
+        kinds = self._check_metrics()
         if self.table is not None:
             self._check_table(names, kinds)
         if self.sweep is not None:
@@ -519,8 +518,9 @@ class Experiment(BaseModel):
                 raise ValueError(f"figure {f.file} names unknown variants {sorted(unknown)}")
         return self
 
-    def _check_metrics(self) -> None:
-        """Unique metric names, closed-loop metrics on closed-loop worlds only, windows inside the run."""
+    def _check_metrics(self) -> list[str]:
+        """Unique metric names, closed-loop metrics on closed-loop worlds only, windows inside the run; returns the
+        names."""
         kinds = [m.label for m in self.metrics]
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"metric names must be unique: {kinds}")
@@ -528,6 +528,7 @@ class Experiment(BaseModel):
             if m.kind in ("int", "recovery") and self.scenario.kind != "rov_tracking":
                 raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
         self.check_windows(self.scenario.horizon)
+        return kinds
 
     def _check_sweep(self, names: list[str], kinds: list[str]) -> None:
         """The sweep's variant is one of the experiment's, and the metrics it shows are among its metrics."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
@@ -125,13 +126,13 @@ class _Cell:
     signal: str
     series: dict[str, pd.Series]
 
-    @property
+    @cached_property
     def means(self) -> dict[str, float]:
+        """Each variant's mean over seeds (computed once per cell, shared by its checks)."""
         return {v: float(s.mean()) if len(s) else math.nan for v, s in self.series.items()}
 
     def check(self, stat: float, ci, needs: str, holds: bool, shown: list[str]) -> Check:
-        means = self.means
-        return Check(self.scenario, self.signal, {v: means[v] for v in shown}, stat, ci, needs,
+        return Check(self.scenario, self.signal, {v: self.means[v] for v in shown}, stat, ci, needs,
                      bool(holds) and math.isfinite(stat))
 
 
