@@ -53,6 +53,25 @@ def test_liu_tunings_of_different_modes_share_a_batch():
                            .derivative(xhat[1:2], y[1:2], tau[1:2])[0])
 
 
+def test_liu_fal_corrections_are_homogeneous_of_degrees_alpha_2alpha_minus_1_3alpha_minus_2():
+    """Outside fal's linear zone the three corrections scale with the output error as |e|^alpha, |e|^(2 alpha - 1)
+    and |e|^(3 alpha - 2), the weights of the homogeneous finite-time form (baselines.md s.1). Read off the
+    derivative at psi = 0 with nu_hat = sigma_hat = 0 and tau = 0: it is (-g1, -g2, -g3)."""
+    alpha = 0.8
+    obs = LiuEsoObserver([LiuEsoTuning(eps=1.0, mode="fal", alpha=alpha, fal_d=0.01)], steady_world().plant.Minv)
+    y, tau = np.zeros((1, 3)), np.zeros((1, 3))
+
+    def corrections(e_x: float) -> np.ndarray:
+        xhat = np.zeros((1, 9))
+        xhat[0, 0] = e_x  # eta_hat - y along x only
+        d = obs.derivative(xhat, y, tau)[0]
+        return -d[[0, 3, 6]]
+
+    small, large = corrections(0.5), corrections(5.0)
+    assert np.all(small > 0)
+    np.testing.assert_allclose(np.log10(large / small), [alpha, 2 * alpha - 1, 3 * alpha - 2], rtol=1e-12)
+
+
 def test_wrap_angle():
     a = np.array([0.0, np.pi, -np.pi, 3 * np.pi / 2, -7.0])
     w = wrap_angle(a)
