@@ -31,6 +31,38 @@ def test_terminal_rise_velocity_and_damping_decay():
     assert (ROV.p.d_heave_lin + ROV.p.d_heave_quad * abs(w)) * abs(w) == pytest.approx(9.0, rel=1e-3)
 
 
+def test_damping_scale_multiplies_heave_and_yaw_damping():
+    """S2-C2's +90 % damping acts on both DOFs: with no thrust, load or buoyancy, the damping force is the scale
+    times the nominal (d_l + d_q |v|) v in heave and in yaw."""
+    x = np.array([[0.2, 0.4, 0.3, -0.5]])  # [z, psi, w, r]
+    p = ROV.p
+    nominal = np.array([(p.d_heave_lin + p.d_heave_quad * 0.3) * 0.3, (p.d_yaw_lin + p.d_yaw_quad * 0.5) * -0.5])
+    for scale in (1.0, 1.9):
+        damping = -ROV.derivative(x, ZERO, ZERO, scale_damping=scale, net_buoyancy=0.0)[0, 2:] * ROV.inertia
+        np.testing.assert_allclose(damping, scale * nominal, rtol=1e-12)
+
+
+def test_srise_integral_terms_follow_eqs_16_17():
+    """One controller period from rest, written out from eqs. (15)-(17) for one DOF: Sigma grows by
+    h (phi + phi*) with I = 0 (so Lambda at eps3), and the next command carries it."""
+    import math
+
+    g, h, e1, e1_dot = TABLE_II_YAW, 0.04, 0.5, 0.3
+    c = SRise([g], batch=1)
+    c.command(np.array([[0.0]]), np.array([[0.0]]), h)  # t0 at rest: e2(t0) = 0, I stays 0
+    c.command(np.array([[e1]]), np.array([[e1_dot]]), h)
+    e2 = e1_dot + g.alpha * math.tanh(e1)  # (14)
+    K = g.k0 * abs(e2) ** (g.delta1 - 1)  # |e2| > eps1
+    B = g.beta * abs(e2) * math.tanh(abs(e2))  # above eps2
+    Lam = g.lambda0 * g.eps3 ** (g.delta2 - 1)  # I = 0 before this step
+    phi = (K + 1) * Lam * math.tanh(e2)
+    phi_star = B * (g.mu1**2 / 2 * math.tanh(e2) + g.mu2**2 * e2 + 3 * g.mu1 * g.mu2 / 2 * abs(e2) ** 0.5 * math.tanh(e2))
+    assert c.Sigma[0, 0] == pytest.approx(h * (phi + phi_star), rel=1e-12)
+    assert c.I[0, 0] == pytest.approx(h * e2, rel=1e-12)
+    tau = c.command(np.array([[e1]]), np.array([[e1_dot]]), h)[0, 0]
+    assert tau == pytest.approx((K + 1) * e2 + h * (phi + phi_star), rel=1e-12)  # e2(t0) = 0
+
+
 @given(st.floats(-500, 500), st.floats(-200, 200))
 def test_allocation_respects_thruster_limits(tz, tp):
     f, achieved = ROV.allocate(np.array([[tz, tp]]))
