@@ -64,3 +64,23 @@ def test_cs2_linear_dp_model_is_the_zero_speed_linearisation():
     # Torben's Q1, R1 with the bias in N and N x L (configs/cross_asv_table4.yaml): L1 poles in [-1.19, -0.19] rad/s
     g = kalman_gains(model.M, model.D, np.diag([50.0, 50.0, 10.0]), np.diag([15.0, 15.0, 1.0]), "force", 1.255)
     assert -1.2 < g.poles.real.min() < -1.18 and -0.2 < g.poles.real.max() < -0.18
+
+
+@settings(max_examples=25)
+@given(st.lists(st.floats(-1.5, 1.5), min_size=3, max_size=3))
+def test_coriolis_and_damping_match_the_matrix_form_of_the_model(nu):
+    """C(nu) nu + D(nu) nu against the matrices of shared/reference/models.md (Skjetne et al. 2004): C_RB + C_A
+    written from m, x_g and the added-mass derivatives, and D(nu) entry by entry with each coefficient on its own
+    |velocity| (Y_|v|r on |v|, Y_|r|r on |r|, ...)."""
+    p = CyberShip2Params()
+    u, v, r = nu
+    c_rb = np.array([[0, 0, -p.m * (p.x_g * r + v)], [0, 0, p.m * u], [p.m * (p.x_g * r + v), -p.m * u, 0]])
+    a13 = p.Y_vdot * v + 0.5 * (p.N_vdot + p.Y_rdot) * r
+    c_a = np.array([[0, 0, a13], [0, 0, -p.X_udot * u], [-a13, p.X_udot * u, 0]])
+    D = -np.array([
+        [p.X_u + p.X_uu * abs(u) + p.X_uuu * u**2, 0, 0],
+        [0, p.Y_v + p.Y_vv * abs(v) + p.Y_rv * abs(r), p.Y_r + p.Y_vr * abs(v) + p.Y_rr * abs(r)],
+        [0, p.N_v + p.N_vv * abs(v) + p.N_rv * abs(r), p.N_r + p.N_vr * abs(v) + p.N_rr * abs(r)],
+    ])
+    expected = (c_rb + c_a + D) @ np.array(nu)
+    np.testing.assert_allclose(CyberShip2(p).coriolis_damping(np.array([nu]))[0], expected, rtol=1e-10, atol=1e-12)
