@@ -252,6 +252,29 @@ def test_bootstrap_ci_coverage_on_synthetic_data():
     assert 0.9 <= hits / 400 <= 0.98  # percentile bootstrap is slightly liberal at n = 20
 
 
+def test_bootstrap_ci_has_the_width_of_its_level():
+    """With many seeds the percentile bootstrap of a mean is the normal interval: half-width 1.96 s / sqrt(n) at
+    95 % (1.64 at 90 %), whatever the draw."""
+    for s in range(5):
+        d = np.random.default_rng(s).normal(0.3, 1.0, 400)
+        se = d.std(ddof=1) / np.sqrt(d.size)
+        for level, z in ((0.95, 1.959964), (0.9, 1.644854)):
+            lo, hi = paired_bootstrap_ci(d, level=level, seed=s)
+            assert (hi - lo) / 2 == pytest.approx(z * se, rel=0.06), (s, level)
+            assert (hi + lo) / 2 == pytest.approx(d.mean(), abs=0.15 * se)
+
+
+def test_an_interval_that_reaches_zero_is_no_change():
+    """One seed of five changed and the others identical: a third of the resamples leave that seed out, so the
+    interval of the difference starts at exactly 0, and a change whose interval contains zero is "same"."""
+    base = pd.DataFrame({"experiment": "e", "scenario": "s", "variant": "a", "seed": range(5), "signal": "u",
+                         "metric": "std", "value": 1.0, "status": "ok"})
+    cand = base.assign(value=[1.0, 1.0, 1.0, 1.0, 1.5])
+    row = compare_frames(base, cand).iloc[0]
+    assert row["ci_low"] == 0.0 and row["ci_high"] > 0.02 * 1.0
+    assert row["verdict"] == "same"
+
+
 def test_the_ci_of_a_relative_change_is_one_of_ratios(tmp_path):
     """Errors cut to a tenth on every seed, one seed's ten times the others': the change is −90 % on every
     resample. Dividing the CI of the mean difference by the baseline's mean printed [−225 %, …], below −100 %
