@@ -307,6 +307,9 @@ def test_tolerance_decides_with_one_seed():
     big = base.assign(value=[1.5])
     assert compare_frames(base, small, Tolerance(rtol=0.02))["verdict"][0] == "same"
     assert compare_frames(base, big, Tolerance(rtol=0.02))["verdict"][0] == "worse"
+    # rtol is relative to the baseline: 0.5 is above 0.4 x 1.0, though within 0.4 x the candidate's 1.5
+    assert compare_frames(base, big, Tolerance(rtol=0.4))["verdict"][0] == "worse"
+    assert compare_frames(base, big, Tolerance(rtol=0.5))["verdict"][0] == "same"
 
 
 def test_real_run_compared_with_itself_rerun(tiny_config, tmp_path):
