@@ -78,6 +78,42 @@ def test_near_paper_uses_the_tables_values_both_ways(tmp_path):
     assert not evaluate(exp, planted({(B, "u"): [0.04, 0.04]}))[0].holds
 
 
+def test_near_paper_compares_in_the_tables_display_units(tmp_path):
+    """A paper value given in the table's displayed unit (here std/u x 100) is compared with our mean x 100."""
+    path = tiny_with_claims(tmp_path, [{"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "near"}])
+    doc = yaml.safe_load(path.read_text())
+    doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
+    doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    exp, _ = load_experiment(path)
+    (res,) = evaluate(exp, planted({(B, "u"): [0.1, 0.1]}))
+    assert res.holds and res.checks[0].statistic == pytest.approx(10.0 / 9.0)
+    assert res.checks[0].means == {B: pytest.approx(0.1), "paper": pytest.approx(0.09)}
+
+
+def test_order_checks_every_consecutive_pair(tmp_path):
+    """``order: [a, c, b]`` means a < c < b: with c above b it fails, though a is below b."""
+    path = tiny_with_claims(tmp_path, [{"kind": "order", "variants": [A, "liu_eps0.1", B], "signals": ["u"],
+                                        "text": "a < c < b"}])
+    doc = yaml.safe_load(path.read_text())
+    doc["variants"].append({"name": "liu_eps0.1", "observer": {"kind": "liu_eso", "eps": 0.1}})
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    exp, _ = load_experiment(path)
+    (res,) = evaluate(exp, planted({(A, "u"): [1.0, 1.0], ("liu_eps0.1", "u"): [3.0, 3.0], (B, "u"): [2.0, 2.0]}))
+    assert [(c.means, c.holds) for c in res.checks] == [({A: 1.0, "liu_eps0.1": 3.0}, True),
+                                                          ({"liu_eps0.1": 3.0, B: 2.0}, False)]
+    assert res.fails
+
+
+def test_a_claim_with_nothing_to_check_fails(tmp_path):
+    """Metrics with no rows for one of the claim's variants: no check can be made, and the claim does not hold."""
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "less", "a": A, "b": B, "signals": ["u"],
+                                                          "text": "a below b"}]))
+    (res,) = evaluate(exp, planted({(A, "u"): [1.0, 1.0]}))
+    assert res.checks == [] and res.not_checked is None
+    assert not res.holds and res.fails
+
+
 def test_multi_scenario_claims_check_where_their_variants_run():
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     rows = []
