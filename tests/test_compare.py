@@ -485,6 +485,26 @@ def test_unpaired_counts_a_larger_share_of_diverged_runs_as_worse(tmp_path, base
     assert [(c["variant"], c["signal"], c["n"], c["n_candidate"]) for c in worse] == [("a", "u", 7, 6)]
 
 
+def test_unpaired_ci_is_welchs_t_interval():
+    """Unequal sizes and spreads: the same interval as scipy's Welch test (Welch-Satterthwaite degrees of freedom)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(8)
+    for n_b, n_c, s_b, s_c in ((3, 9, 0.1, 0.5), (5, 4, 0.4, 0.05), (12, 20, 0.3, 0.5)):
+        b, c = rng.normal(1.0, s_b, n_b), rng.normal(1.2, s_c, n_c)
+        ci = stats.ttest_ind(c, b, equal_var=False).confidence_interval(0.95)
+        assert welch_ci(b, c) == pytest.approx((ci.low, ci.high), rel=1e-9)
+
+
+def test_relative_change_of_a_negative_baseline_has_the_sign_of_the_change():
+    """A mean-error metric can be negative: twice as negative is a change of −100 % of |baseline|, below zero like
+    the difference, not +100 %."""
+    base = np.array([-1.0, -1.1, -0.9, -1.05])
+    lo, hi = paired_bootstrap_ci(2 * base - base)
+    rlo, rhi = relative_change_ci(base, 2 * base)
+    assert lo <= hi < 0 and (rlo, rhi) == pytest.approx((-1.0, -1.0))
+
+
 def test_unpaired_ci_keeps_its_level_with_few_seeds():
     """Independent samples of different sizes hold the true difference about 95 % of the time, and with the
     2–3 seeds of a quick run no change at all is rarely called one (a percentile bootstrap of the two means

@@ -37,6 +37,17 @@ def test_jonswap_hs_recovered():
     assert abs(jonswap(np.array([2 * np.pi / 6.3]), 2.0, 6.3, 3.3)[0] - 0.779) < 0.01
 
 
+def test_jonswap_peak_is_narrower_below_the_peak_frequency():
+    """DNV's peak enhancement gamma^exp(-(w - w0)^2 / (2 s^2 w0^2)), s = 0.07 below w0 and 0.09 above, over the
+    Pierson-Moskowitz shape (gamma = 1) and the normalisation 1 - 0.287 ln gamma: one width from the peak on either
+    side the enhancement is gamma^exp(-1/2)."""
+    gamma, tp = 3.3, 6.3
+    w0 = 2 * np.pi / tp
+    w = np.array([w0 * (1 - 0.07), w0, w0 * (1 + 0.09)])
+    enhancement = jonswap(w, 2.0, tp, gamma) / jonswap(w, 2.0, tp, 1.0) / (1 - 0.287 * np.log(gamma))
+    np.testing.assert_allclose(enhancement, [gamma ** np.exp(-0.5), gamma, gamma ** np.exp(-0.5)], rtol=1e-12)
+
+
 def test_gauss_markov_stationary_std():
     rng = np.random.default_rng(0)
     c, ts, sigma = 1 / 20.0, 1.0, 0.5  # short time constant so the test reaches stationarity quickly
