@@ -110,3 +110,15 @@ def test_faster_design_has_faster_poles_and_larger_bound():
     fast = design(BejaranoTuning(delta_psi1=2.2, delta_p1=2.2, k_n=1))[1]
     assert fast.poles.real.max() < slow.poles.real.max()
     assert fast.beta > slow.beta  # Remark 5: faster poles -> larger final error bound
+
+
+def test_verify_reports_poles_outside_the_requested_region():
+    """The numpy re-check is not a rubber stamp: the same solution checked against a faster decay rate, or a
+    smaller disk, than it was designed for is refused, each with its reason."""
+    sol = rotational_design(1.2, 50.0)
+    slowest, fastest = -sol.poles.real.max(), np.abs(sol.poles).max()
+    assert verify(sol, 1.2, 50.0) == []
+    (too_slow,) = verify(sol, 1.05 * slowest, 50.0)
+    assert "slowest pole" in too_slow
+    (too_fast,) = verify(sol, 1.2, 0.95 * fastest)
+    assert "fastest pole" in too_fast

@@ -172,3 +172,15 @@ def test_shipx_mass_matrix_must_be_positive_definite(tmp_path):
                                    "--set", "scenario.vessel.M=[[1, 0, 0], [0, -1, 0], [0, 0, 1]]"])
     assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario.vessel.M: M must be positive definite"
     assert not (tmp_path / "o").exists()
+
+
+def test_wave_components_carry_the_spectrums_variance():
+    """zeta = sum A_k cos(w_k t + eps_k) with random phases has variance sum A_k^2 / 2, which must be the spectrum's
+    m0 (so 4 sqrt(m0) = Hs on a fine grid)."""
+    from marinebench.environment.waves import component_amplitudes
+
+    w = np.linspace(0.05, 6.0, 20000)
+    dw = np.full_like(w, w[1] - w[0])
+    A = component_amplitudes(w, dw, 2.0, 6.3, 3.3)
+    m0 = np.trapezoid(jonswap(w, 2.0, 6.3, 3.3), w)
+    assert np.sum(A**2) / 2 == pytest.approx(m0, rel=1e-3)
