@@ -97,3 +97,62 @@ def test_every_scenario_kind_shares_the_step_checks():
         RovScenario(**common, horizon=1, control_period=0.003)
     with pytest.raises(ValidationError, match="sensors.ts: 0.07 s must be a multiple"):
         DpScenario(name="d", horizon=10, sensors={"ts": 0.07})
+
+
+def world_of(runs: int, observers=None, **scenario) -> RovWorld:
+    """A level-flight S1-like world (no reference moves) with RISE on every run."""
+    from marinebench.controllers.spec import ControllerSpec
+
+    sc = RovScenario(name="w", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10, **scenario)
+    return RovWorld(sc, 0, np.zeros(runs, dtype=int), [(ControllerSpec(kind="rise"), list(range(runs)))], observers)
+
+
+def test_cdo_and_its_inter_sample_predictor_follow_eq_38():
+    """x_hat' = A x_hat + B u + Delta_theta K* (w - x_hat_1) and w' = x_hat_2 + K_w (w - x_hat_1), per DOF."""
+    from marinebench.observers.cdo import RovObserverSpec
+
+    w = world_of(1, [RovObserverSpec(kind="cdo")])
+    x = w.x0.copy()
+    cdo, pred = w.cdo_view(x)
+    cdo[0] = [[0.10, 0.05, 0.2], [0.3, -0.1, 0.4]]  # [eta, eta_dot, delta*] for depth and yaw
+    pred[0] = [0.12, 0.25]  # the predictors w, ahead of the estimates
+    innovation = pred[0] - cdo[0, :, 0]
+    d = w.observers_derivative(x)[0]
+    d_cdo, d_w = d[:6].reshape(2, 3), d[6:8]
+    gain = w.sc.cdo.injection()
+    acc = w.tau[0] / w.m_hat
+    np.testing.assert_allclose(d_w, cdo[0, :, 1] + w.sc.cdo.k_w * innovation, rtol=1e-12)
+    np.testing.assert_allclose(d_cdo[:, 0], cdo[0, :, 1] + gain[0] * innovation, rtol=1e-12)
+    np.testing.assert_allclose(d_cdo[:, 1], cdo[0, :, 2] + acc + gain[1] * innovation, rtol=1e-12)
+    np.testing.assert_allclose(d_cdo[:, 2], gain[2] * innovation, rtol=1e-12)
+
+
+def test_observation_error_at_the_samples_is_each_runs_own_observers():
+    """``*_meas``: a CDO run compares the CDO's estimate just before the sample with the sample, an EO run the EO's."""
+    from marinebench.observers.cdo import RovObserverSpec
+
+    w = world_of(2, [RovObserverSpec(kind="cdo"), RovObserverSpec(kind="eo")], sensors={"depth_noise": 0.0,
+                                                                                          "yaw_noise_deg": 0.0})
+    x = w.x0.copy()
+    w.cdo_view(x)[0][:, 0, 0] = 0.03  # the CDO's depth estimate in both runs
+    w.eo_view(x)[:, 0, 0] = -0.02  # the EO's
+    w.begin_step(0, 0.0, x)  # both sensors sample at k = 0
+    est, truth = w.estimates(0.0, x), w.truth(0.0, x)
+    np.testing.assert_array_equal(est["depth_meas"], [0.03, -0.02])
+    np.testing.assert_array_equal(truth["depth_meas"], [0.0, 0.0])
+
+
+def test_gyro_rate_is_the_true_rate_plus_the_gyros_noise():
+    """``yaw_rate: gyro`` feeds the true rate plus white noise of ``gyro_noise_dps``; ``true`` the rate itself."""
+    every = round(0.04 / 0.002)
+    errors = {}
+    for source in ("gyro", "true"):
+        w = world_of(1, sensors={"yaw_rate": source, "gyro_noise_dps": 2.0})
+        x = w.x0.copy()
+        x[:, 3] = 0.3  # yaw rate
+        errors[source] = []
+        for k in range(0, 240 * every, every):  # 240 attitude samples over the 10 s horizon
+            w.begin_step(k, k * w.sc.dt, x)
+            errors[source].append(w.ydot[0, 1] - 0.3)
+    assert np.std(errors["gyro"]) == pytest.approx(np.deg2rad(2.0), rel=0.15)
+    assert np.all(np.array(errors["true"]) == 0.0)
