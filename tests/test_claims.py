@@ -19,10 +19,13 @@ from .conftest import ROOT, write_tiny
 runner = CliRunner()
 
 
-def tiny_with_claims(tmp_path, claims: list[dict]):
+def tiny_with_claims(tmp_path, claims: list[dict], edit=None):
+    """The tiny experiment with ``claims``; ``edit(doc)`` may change the rest of its YAML first."""
     path = write_tiny(tmp_path)
     doc = yaml.safe_load(path.read_text())
     doc["claims"] = claims
+    if edit is not None:
+        edit(doc)
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
 
@@ -80,12 +83,12 @@ def test_near_paper_uses_the_tables_values_both_ways(tmp_path):
 
 def test_near_paper_compares_in_the_tables_display_units(tmp_path):
     """A paper value given in the table's displayed unit (here std/u x 100) is compared with our mean x 100."""
-    path = tiny_with_claims(tmp_path, [{"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "near"}])
-    doc = yaml.safe_load(path.read_text())
-    doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
-    doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    exp, _ = load_experiment(path)
+    def in_cm(doc):
+        doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
+        doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
+
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "near_paper", "factor": 2, "signals": ["u"],
+                                                          "text": "near"}], in_cm))
     (res,) = evaluate(exp, planted({(B, "u"): [0.1, 0.1]}))
     assert res.holds and res.checks[0].statistic == pytest.approx(10.0 / 9.0)
     assert res.checks[0].means == {B: pytest.approx(0.1), "paper": pytest.approx(0.09)}
@@ -93,12 +96,11 @@ def test_near_paper_compares_in_the_tables_display_units(tmp_path):
 
 def test_order_checks_every_consecutive_pair(tmp_path):
     """``order: [a, c, b]`` means a < c < b: with c above b it fails, though a is below b."""
-    path = tiny_with_claims(tmp_path, [{"kind": "order", "variants": [A, "liu_eps0.1", B], "signals": ["u"],
-                                        "text": "a < c < b"}])
-    doc = yaml.safe_load(path.read_text())
-    doc["variants"].append({"name": "liu_eps0.1", "observer": {"kind": "liu_eso", "eps": 0.1}})
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    exp, _ = load_experiment(path)
+    def third_variant(doc):
+        doc["variants"].append({"name": "liu_eps0.1", "observer": {"kind": "liu_eso", "eps": 0.1}})
+
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "order", "variants": [A, "liu_eps0.1", B],
+                                                          "signals": ["u"], "text": "a < c < b"}], third_variant))
     (res,) = evaluate(exp, planted({(A, "u"): [1.0, 1.0], ("liu_eps0.1", "u"): [3.0, 3.0], (B, "u"): [2.0, 2.0]}))
     assert [(c.means, c.holds) for c in res.checks] == [({A: 1.0, "liu_eps0.1": 3.0}, True),
                                                           ({"liu_eps0.1": 3.0, B: 2.0}, False)]
