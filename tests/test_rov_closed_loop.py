@@ -21,6 +21,14 @@ def experiment(tmp_path, variants, *sets, metrics=None):
     return load_experiment(path, list(sets))[0], path
 
 
+def world_of(runs: int, observers=None, **scenario) -> RovWorld:
+    """A Leonard-like world holding depth 0 and yaw 0 (the references never move), RISE on every run."""
+    from marinebench.controllers.spec import ControllerSpec
+
+    sc = RovScenario(name="w", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10, **scenario)
+    return RovWorld(sc, 0, np.zeros(runs, dtype=int), [(ControllerSpec(kind="rise"), list(range(runs)))], observers)
+
+
 def test_min_jerk_reference():
     pts = [(0.0, 0.0), (5.0, 1.0), (10.0, 1.0)]
     assert min_jerk(-1, pts) == (0.0, 0.0) and min_jerk(12, pts) == (1.0, 0.0)
@@ -36,12 +44,8 @@ def test_rise_tracks_s1_reference_in_closed_loop(tmp_path):
 
 
 def test_payload_hangs_until_the_floor_and_pushes_act_in_their_window():
-    sc = RovScenario(name="p", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10,
-                     payload={"weight_fraction": 0.04, "floor_depth": 0.25},
-                     pushes=[{"t_start": 2.0, "duration": 0.5, "force": [70.0, 0.0]}])
-    from marinebench.controllers.spec import ControllerSpec
-
-    w = RovWorld(sc, 0, np.zeros(2, dtype=int), [(ControllerSpec(kind="rise"), [0, 1])])
+    w = world_of(2, payload={"weight_fraction": 0.04, "floor_depth": 0.25},
+                 pushes=[{"t_start": 2.0, "duration": 0.5, "force": [70.0, 0.0]}])
     x = np.array([[0.1, 0, 0, 0], [0.3, 0, 0, 0]])
     f = w.loads(1.0, x)
     assert f[0, 0] == pytest.approx(0.04 * 28 * 9.81) and f[1, 0] == 0.0  # resting on the floor below 0.25 m
@@ -99,14 +103,6 @@ def test_every_scenario_kind_shares_the_step_checks():
         DpScenario(name="d", horizon=10, sensors={"ts": 0.07})
 
 
-def world_of(runs: int, observers=None, **scenario) -> RovWorld:
-    """A level-flight S1-like world (no reference moves) with RISE on every run."""
-    from marinebench.controllers.spec import ControllerSpec
-
-    sc = RovScenario(name="w", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10, **scenario)
-    return RovWorld(sc, 0, np.zeros(runs, dtype=int), [(ControllerSpec(kind="rise"), list(range(runs)))], observers)
-
-
 def test_cdo_and_its_inter_sample_predictor_follow_eq_38():
     """x_hat' = A x_hat + B u + Delta_theta K* (w - x_hat_1) and w' = x_hat_2 + K_w (w - x_hat_1), per DOF."""
     from marinebench.observers.cdo import RovObserverSpec
@@ -144,10 +140,10 @@ def test_observation_error_at_the_samples_is_each_runs_own_observers():
 
 def test_gyro_rate_is_the_true_rate_plus_the_gyros_noise():
     """``yaw_rate: gyro`` feeds the true rate plus white noise of ``gyro_noise_dps``; ``true`` the rate itself."""
-    every = round(0.04 / 0.002)
     errors = {}
     for source in ("gyro", "true"):
         w = world_of(1, sensors={"yaw_rate": source, "gyro_noise_dps": 2.0})
+        every = w.every[1]  # steps between attitude samples
         x = w.x0.copy()
         x[:, 3] = 0.3  # yaw rate
         errors[source] = []
