@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 import yaml
+from pydantic import ValidationError
 from typer.testing import CliRunner
 
 from marinebench.cli import app
@@ -25,14 +26,31 @@ def test_events_happen_at_configured_times():
     assert w.events(49.99)[1] == 0 and w.events(50.0)[1] == 5e6 and w.events(59.99)[1] == 5e6 and w.events(60.0)[1] == 0
     assert w.events(20.0)[0] == 0 and np.isclose(w.events(30.0)[0], 1e5) and np.isclose(w.events(25.0)[0], 0.5e5)
     assert np.isclose(w.events(60.0)[0], 0)
+    # a raised cosine, 0.5 (1 - cos(pi s)) of the rise fraction s, on the way up and (mirrored) on the way down
+    quarter = 1e5 * 0.5 * (1 - np.cos(np.pi / 4))
+    assert np.isclose(w.events(22.5)[0], quarter) and np.isclose(w.events(57.5)[0], quarter)
 
 
 def test_stationary_gauss_markov_reading():
     sc = DpScenario(name="n", horizon=10, waves=None, sensors={"gnss_sigma": 1.5, "sigma_is": "stationary"})
     w = DpWorld(sc, 0, np.arange(4000))
     assert abs(w.gm[:, 0].std() / 1.5 - 1) < 0.05  # starts in the stationary distribution
+    # and stays in it: eq. (48)'s driving std sigma*sqrt(1 - exp(-2 c Ts)) keeps the variance (c Ts = 0.5 here, so
+    # a wrong driving std shows within a few samples)
+    fast = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"gm_time_constant": 2.0})}), 0,
+                   np.arange(4000))
+    for k in range(0, 201, fast.every):
+        fast.begin_step(k, k * sc.dt, np.zeros((4000, 9)))
+    assert abs(fast.gm[:, :2].std() / 1.5 - 1) < 0.05
+    assert abs(fast.gm[:, 2].std() / np.deg2rad(0.3) - 1) < 0.05  # the heading's own sigma (Table I: 0.3 deg)
     lit = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"sigma_is": "driving"})}), 0, np.arange(3))
     assert np.allclose(lit.sigma[:, 0], 1.5) and np.allclose(lit.gm, 0)
+
+
+def test_sensor_sample_time_must_be_on_the_step_grid():
+    with pytest.raises(ValidationError, match=r"sensors.ts: 1.025 s must be a multiple of dt=0.05 s"):
+        DpScenario(name="t", horizon=10, sensors={"ts": 1.025})
+    assert DpScenario(name="t", horizon=10, dt=0.05, sensors={"ts": 0.15}).sensors.ts == 0.15  # 3 steps, despite rounding
 
 
 def test_gauss_markov_between_samples_hold_or_linear():
@@ -53,6 +71,54 @@ def test_gauss_markov_between_samples_hold_or_linear():
     np.testing.assert_allclose(lin[10], 0.5 * (hold[0] + hold[20]))  # halfway between samples
 
 
+def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_peak():
+    """eta_WF = RAO sum_k A_k cos(w_k t + eps_k): w_k the midpoints of n equal bins up to w_max_factor * w_p,
+    A_k = sqrt(2 S(w_k) dw) (the spectrum's variance in each bin), times (w_p / w_k)^rolloff above the peak w_p."""
+    from marinebench.environment.waves import component_amplitudes, dnv_gamma
+
+    def components(rolloff, gamma=3.3):
+        sc = DpScenario(name="w", horizon=10, waves={"n_components": 40, "w_max_factor": 3.0, "rao_rolloff": rolloff,
+                                                     "gamma": gamma})
+        return DpWorld(sc, 5, np.arange(2)).wave[:2]
+
+    omega, flat = components(0.0)
+    w_p = 2 * np.pi / 6.3
+    edges = np.linspace(0.0, 3.0 * w_p, 41)
+    np.testing.assert_allclose(omega, (edges[1:] + edges[:-1]) / 2)
+    np.testing.assert_allclose(flat, component_amplitudes(omega, np.diff(edges), 2.0, 6.3, 3.3))
+    _, rolled = components(2.0)
+    np.testing.assert_allclose(rolled, flat * np.minimum(1.0, (w_p / omega) ** 2))
+    _, dnv = components(0.0, gamma=None)  # no gamma: DNV's rule, 1.87 for Hs 2 m, Tp 6.3 s
+    assert dnv_gamma(2.0, 6.3) == pytest.approx(1.87, abs=0.01)
+    np.testing.assert_allclose(dnv, component_amplitudes(omega, np.diff(edges), 2.0, 6.3, dnv_gamma(2.0, 6.3)))
+
+
+def test_notch_runs_at_the_measurement_rate_with_held_measurements():
+    """hold: measurement — the notch sees one new sample per ts, so it is designed for ts: a pose oscillating at
+    the notch frequency w0 (wave-like) is taken out of the measurement once the filter has settled."""
+    sc = DpScenario(name="h", horizon=200, waves=None,
+                    sensors={"hold": "measurement", "gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "notch_w0": 1.0})
+    w = DpWorld(sc, 0, np.arange(1))
+    x = np.zeros((1, 9))
+    ys = []
+    for k in range(round(sc.horizon / sc.dt)):
+        x[0, 0] = np.sin(k * sc.dt)
+        w.begin_step(k, k * sc.dt, x)
+        ys.append(w.y[0, 0])
+    assert np.abs(ys[-400:]).max() < 0.05
+
+
+def test_notch_starts_settled_on_the_first_measurement():
+    """The notch is started in its steady state for the first measurement: a vessel at rest away from the origin
+    is measured where it is from the first step on, with no start-up transient of the filter."""
+    sc = DpScenario(name="r", horizon=20, waves=None, initial={"eta": [10.0, -5.0, 0.3]},
+                    sensors={"gnss_sigma": 0.0, "heading_sigma_deg": 0.0})
+    w = DpWorld(sc, 0, np.arange(2))
+    for k in range(100):
+        w.begin_step(k, k * sc.dt, w.x0)
+        np.testing.assert_allclose(w.y, w.x0[:, :3], atol=1e-9)
+
+
 def test_white_heading_noise_option():
     """heading_noise 'white': a fresh N(0, 0.3 deg) every step, uncorrelated; North/East keep eq. (48)."""
     sc = DpScenario(name="w", horizon=100, waves=None,
@@ -70,6 +136,13 @@ def test_white_heading_noise_option():
                  0, np.arange(3))
     white = DpWorld(sc, 0, np.arange(3))
     assert (white.gm[:, 2] == 0).all() and (gm.gm[:, 2] != 0).all() and np.array_equal(white.gm[:, :2], gm.gm[:, :2])
+    # no Gauss-Markov heading error on top: over 1000 s the white error averages out (a drift would not)
+    long = DpWorld(sc.model_copy(update={"horizon": 1000.0}), 0, np.arange(3))
+    psi = []
+    for k in range(20001):
+        long.begin_step(k, k * sc.dt, x)
+        psi.append(long.y[:, 2].copy())
+    assert np.abs(np.mean(psi, axis=0)).max() < 0.05 * np.deg2rad(0.3)
 
 
 def test_norm_integral_matches_numpy():
