@@ -119,6 +119,17 @@ def test_open_loop_forces_kept_for_one_time_equal_fresh_ones():
     assert np.any(world.forces(1.25)[0] != world.forces(0.0)[0])
 
 
+def test_a_runs_world_is_its_seeds_whatever_the_batch():
+    """Run b of an open-loop world draws from seed seed_of_run[b] alone: in any order, repeated or not, its forces
+    and noise are those of a world of that seed by itself."""
+    mixed = _open_loop_world([3, 0, 3, 1])
+    for t in (0.0, 2.5):
+        for b, seed in enumerate([3, 0, 3, 1]):
+            alone = _open_loop_world([seed])
+            for got, want in zip(mixed.forces(t), alone.forces(t)):
+                np.testing.assert_array_equal(got[b], want[0])
+
+
 def test_kept_forces_are_read_only():
     tau, _ = _open_loop_world([0]).forces(0.5)
     with pytest.raises(ValueError, match="read-only"):

@@ -13,7 +13,7 @@ from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.cli import app
 from marinebench.config import SweepParam, SweepSpec
 from marinebench.errors import ConfigError
-from marinebench.experiments.grid import grid_claims, grid_claims_markdown, grid_surfaces, grid_table
+from marinebench.experiments.grid import GridClaim, grid_claims, grid_claims_markdown, grid_surfaces, grid_table
 from marinebench.experiments.sweep import GRID_N, sweep_experiment, sweep_suffix
 from marinebench.loading import load_experiment
 
@@ -50,6 +50,10 @@ def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range(
     assert tuning(torben, "eps") is None  # c_eps scales the parameter's fixed eps: the variant's own eps is no c_eps
     tijjani, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     assert (tuning(tijjani, "yaw_alpha"), tuning(tijjani, "yaw_k0")) == (1.1, 0.72)  # Table II, not set in the file
+    # outside the swept range (here, delta = 2.5 above [0.15, 2]) there is nothing to mark on the axis
+    narrow, _ = load_experiment(CFG, sets=["sweep.params.delta.range=[0.15, 2.0]", "sweep.params.delta.probes=[0.15]",
+                                           "sweep.params.delta.trend=null", "sweep.claims=[]"])
+    assert tuning(narrow, "delta") is None and tuning(narrow, "k") == 0.7
 
 
 def synthetic() -> pd.DataFrame:
@@ -103,6 +107,8 @@ def test_grid_claims_map_the_slices_of_the_other_parameter_where_a_claim_holds()
     # along b, slice a: J(b=0) / J(b=3) = (2.5 - a) / (5.5 - a) < 0.9 on every slice (0.45, 0.33, 0.14)
     assert (probe.other, probe.holding) == ("a", [0.0, 1.0, 2.0])
     assert groups.holding == [0.0, 1.0, 2.0, 3.0]  # hi = 2 lo on every slice
+    empty = GridClaim(grows.claim, "J", "b", {0.0: [], 1.0: grows.slices[1.0]})
+    assert (empty.holding, empty.failing) == ([1.0], [0.0])  # a slice with nothing checked does not hold
     md = grid_claims_markdown(SimpleNamespace(name="syn", seeds=2, seed=0), [grows, probe], {"a": None, "b": 2.0})
     assert "| 1 | J grows with a (config's b = 2: holds) |" in md and "b ∈ {1, 2, 3} | b ∈ {0} |" in md
     assert "| 2 | b = 0 at least 10 % below b = 3 |" in md and "| 2 | a = 1, lo | z |" in md
