@@ -100,3 +100,20 @@ def test_sweep_claims_on_known_curves():
         SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[4], "above": "c"}]})
     with pytest.raises(ValueError, match="outside k's range"):
         SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[0], "at": 2.0}]})
+
+
+def test_log_probes_interpolate_in_the_log_and_trends_keep_to_their_range():
+    """J = (1 + |log10 delta|) (1 + 0.1 seed): falls on [0.1, 1], rises above. A probe between grid points is
+    interpolated in log(delta); the trend over [0.1, 1] sees only the falling half."""
+    m = synthetic()
+    is_delta = m["param"] == "delta"
+    m.loc[is_delta, "value"] = (1 + np.abs(np.log10(m.loc[is_delta, "param_value"]))) * (1 + 0.1 * m.loc[is_delta, "seed"])
+    spec = SweepSpec.model_validate({**SPEC.model_dump(), "params": {
+        "delta": {"key": "delta", "range": (0.1, 10), "spacing": "log", "probes": [1.0, 3.0], "trend": (0.1, 1.0)}},
+        "claims": [{"kind": "trend", "param": "delta", "range": (0.1, 1.0), "decreasing": True, "text": "falls"}]})
+    t = sweep_table(m[is_delta], "J_tot", spec)
+    # 3 lies between the grid points 10^0.25 and 10^0.5, where J is linear in log10(delta): J(3) = 1 + log10(3)
+    assert row(t, "delta", "a", "z", "3")[4].startswith(f"{1.05 * (1 + np.log10(3)):.4g} [")
+    assert row(t, "delta", "a", "z", "[0.1, 1]")[4:] == ["5", "-1.00"]
+    (falls,) = sweep_claims(m[is_delta], spec)
+    assert falls.holds and falls.checks[0].statistic == pytest.approx(-1.0)
