@@ -90,6 +90,12 @@ def test_diverged_runs_are_flagged_not_averaged(tiny_config):
     assert (other["status"] == "ok").all()
     s = r.summary[r.summary["variant"] == "liu_eps0.2"]
     assert (s["n"] == 0).all() and (s["n_diverged"] == 2).all()
+    from marinebench.results.tables import markdown_table
+
+    table = markdown_table(r.experiment, r.summary)
+    liu_row, other_row = (next(line for line in table.splitlines() if line.startswith(f"| {v} |"))
+                          for v in ("liu_eps0.2", "proposed_d1.2"))
+    assert "(2 diverged)" in liu_row and "diverged" not in other_row
 
 
 def test_columns_is_np_stack_bit_for_bit():

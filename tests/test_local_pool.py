@@ -26,6 +26,8 @@ def test_worker_processes_give_the_in_process_numbers_report_progress_and_resume
     base, _ = load_experiment(CFG)
     exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 60.0, CFG)  # 3 runs of 1200 steps, 3 chunks of 1
     assert len(chunks_of(exp, 1)) == 3 and len(chunks_of(exp, 2)) == 2
+    two = exp.model_copy(update={"seeds": 2})  # a chunk's size counts runs: 2 seeds of each variant
+    assert [len(c) for c in chunks_of(two, 4)] == [2, 1] and [len(c) for c in chunks_of(two, 1)] == [1, 1, 1]
     local, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=1)
     target, partial = tmp_path / "pool", tmp_path / ".pool.partial"
     steps = []

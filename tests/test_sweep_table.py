@@ -117,3 +117,14 @@ def test_log_probes_interpolate_in_the_log_and_trends_keep_to_their_range():
     assert row(t, "delta", "a", "z", "[0.1, 1]")[4:] == ["5", "-1.00"]
     (falls,) = sweep_claims(m[is_delta], spec)
     assert falls.holds and falls.checks[0].statistic == pytest.approx(-1.0)
+
+
+def test_a_groups_claim_needs_every_value():
+    """'b above a at every k': b is twice a except at k = 1, where it is half; the claim fails there, and its
+    statistic is that lowest ratio (not the ratio on average, 1.86)."""
+    m = synthetic()
+    m.loc[(m["gnss"] == "b") & (m["param"] == "k") & np.isclose(m["param_value"], 1.0), "value"] /= 4
+    spec = SweepSpec.model_validate({**SPEC.model_dump(), "groups": {"a": {}, "b": {}}, "claims": [
+        {"kind": "groups", "param": "k", "above": "b", "below": "a", "text": "b above a"}]})
+    (res,) = sweep_claims(m, spec)
+    assert not res.holds and res.checks[0].statistic == pytest.approx(0.5)
