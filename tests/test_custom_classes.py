@@ -154,6 +154,11 @@ def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_examp
     assert rmse["pid", "depth"] != rmse["cdo_pid", "depth"]  # feedback: cdo feeds it the CDO's estimates
     table = (d / "table.md").read_text()
     assert "rmse (depth [1e-2 m])" in table  # table.display applies to single-scenario tables too
+    lines = table.splitlines()
+    header = next(line for line in lines if line.startswith("| variant |")).strip("|").split("|")
+    pid = next(line for line in lines if line.startswith("| pid |")).strip("|").split("|")
+    cell = pid[[h.strip() for h in header].index("rmse (depth [1e-2 m])")].strip()
+    assert cell.startswith(f"{100 * rmse['pid', 'depth']:.3g} [")  # ours x 100, in the displayed unit
     designs = json.loads((d / "manifest.json").read_text())["designs"]
     source = controller_example.parent / "pid.py"
     assert designs["pid"]["controller"]["source"] == f"{source.resolve()}:Pid"
