@@ -158,6 +158,18 @@ def test_norm_integral_matches_numpy():
     np.testing.assert_allclose(rec.value, total)
 
 
+def test_a_variants_world_settings_reach_its_own_runs():
+    """``variants[].world`` sets per-run sensor settings: the NPO's runs get 15x the GNSS error and 2x the heading
+    error of the resetting observer's runs on the same seeds (the same standard-normal draws, scaled)."""
+    from marinebench.experiments.runner import make_world
+
+    exp, _ = load_experiment(CONFIG, ["seeds=2", "variants[npo].world={gnss_sigma: 1.5, heading_sigma_deg: 0.6}"])
+    run_variant, run_seed = np.repeat([0, 1], 2), np.tile([0, 1], 2)
+    world = make_world(exp, run_variant, run_seed)
+    assert [v.name for v in exp.variants] == ["npo", "resetting"]
+    np.testing.assert_allclose(world.gm[:2] / world.gm[2:], [[15.0, 15.0, 2.0]] * 2)
+
+
 def short(*sets, config=CONFIG):
     exp, _ = load_experiment(config, ["scenario.horizon=120", "seeds=1", "figures=[]", *sets])
     return run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]

@@ -302,3 +302,21 @@ def test_a_one_scenario_table_states_the_papers_units_like_a_study_table():
                              ["table.paper.units={rmse/depth_meas: '% of the EO'}"])
     summary = pd.DataFrame([], columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
     assert "(paper units: rmse/depth_meas: % of the EO)." in markdown_table(exp, summary)
+
+
+def test_study_table_puts_each_papers_value_in_its_own_row():
+    """Table III's paper columns: each cell is the paper's value for that scenario, metric and signal (the yaw rows
+    carry the yaw values, not the depth ones); '–' where the paper has none (S3 for RISE and S+RISE)."""
+    import pandas as pd
+
+    from marinebench.results.tables import study_table
+
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    summary = pd.DataFrame([], columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
+    cells = [[c.strip() for c in line.strip("|").split("|")] for line in study_table(exp, summary).splitlines()
+             if line.startswith(("| rmse", "| int"))]
+    rows = {tuple(c[:2]): c for c in cells}
+    # columns: index, scenario, then (ours, paper) per variant: rise, srise, cdo_srise
+    assert rows["rmse yaw [1e-2 rad]", "S2-C1"][3::2] == ["2.56", "1.54", "1.47"]
+    assert rows["int depth [N² s]", "S1"][3::2] == ["291", "290", "296"]
+    assert rows["rmse depth [1e-2 m]", "S3"][3::2] == ["–", "–", "1.94"]
