@@ -174,7 +174,8 @@ class PaperValues(BaseModel):
     source: str = Field(..., description="citation, e.g. 'Bejarano et al., Table IV'")
     values: dict[str, dict[str, float]] = Field(
         default_factory=dict,
-        description="variant -> signal -> value; multi-scenario experiments: variant -> 'scenario/metric/signal' -> value",
+        description="variant -> signal -> value of the table's (first) metric, shown beside ours; multi-scenario "
+        "experiments: variant -> 'scenario/metric/signal' -> value",
     )
     units: dict[str, str] = Field(default_factory=dict, description="'metric/signal' -> the unit the paper reports in")
 
@@ -201,6 +202,12 @@ class TableSpec(BaseModel):
     display: dict[str, Display] = Field(
         default_factory=dict, description="'metric/signal' -> scale and unit for the table (e.g. rmse/depth: cm)"
     )
+
+    @property
+    def shown(self) -> list[str]:
+        """The metrics tabulated: ``metrics``, or ``metric`` alone; the first is the one the paper's values (of a
+        single-scenario experiment) and the claims without a metric are about."""
+        return self.metrics or [self.metric]
 
 
 class FigureSpec(BaseModel):
@@ -360,7 +367,7 @@ class Experiment(BaseModel):
     def claim_metric(self, claim) -> str | None:
         if claim.metric is not None or self.table is None:
             return claim.metric
-        return (self.table.metrics or [self.table.metric])[0]
+        return self.table.shown[0]
 
     def claim_signals(self, claim) -> list[str]:
         """The signals a claim covers: its own, or the table's."""
@@ -393,6 +400,8 @@ class Experiment(BaseModel):
             return f"unknown scenarios {sorted(set(claim.scenarios) - set(self.scenario_names))}"
         if claim.kind == "near_paper" and (self.table is None or self.table.paper is None):
             return "near_paper needs the table's paper values"
+        if claim.kind == "near_paper" and self.scenarios is None and metric != self.table.shown[0]:
+            return f"near_paper: the paper's values (table.paper) are of the table's first metric '{self.table.shown[0]}'"
         return None
 
     def _fill_signals(self) -> None:
@@ -408,7 +417,7 @@ class Experiment(BaseModel):
             if isinstance(m, ErrorMetric) and m.signals is None:
                 m.signals = list(default)
         if self.table is not None and self.table.signals is None:
-            listed = set(self.table.metrics or [self.table.metric])
+            listed = set(self.table.shown)
             signals: list[str] = []
             for m in self.metrics:
                 if m.label in listed:
@@ -489,7 +498,7 @@ class Experiment(BaseModel):
     def _check_table(self, names: list[str], kinds: list[str]) -> None:
         """The table's metrics are the experiment's (or observer diagnostics); its ``relative`` pair and the
         paper's values name variants (or the relative row, ``<a>_vs_<b>``)."""
-        for name in self.table.metrics or [self.table.metric]:
+        for name in self.table.shown:
             if name not in kinds and name not in DIAGNOSTICS:
                 raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
         rel = self.table.relative

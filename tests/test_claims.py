@@ -188,3 +188,28 @@ def test_run_writes_claims_and_require_claims_gates(tmp_path):
     assert report.exit_code == 0 and "Claims checked: tiny" in html and "<b>fails</b> | cannot hold" not in html
     assert "<td><b>fails</b></td><td>cannot hold</td>" in html
     assert "<tr><td>tiny</td><td>1\u00a0of\u00a02</td><td>cannot hold</td></tr>" in html  # the overview (no wrap)
+
+
+def test_with_several_table_metrics_the_papers_values_sit_beside_the_first(tmp_path):
+    """A single-scenario table's paper values are per variant and signal, of the table's first metric: with several
+    metrics their column follows each of that metric's columns only, and a near_paper claim about another metric
+    is reported not checked."""
+    from marinebench.experiments.runner import summarise
+    from marinebench.results.tables import markdown_table
+
+    def two_metrics(doc):
+        doc["metrics"].append({"kind": "rmse", "t_start": 1.0})
+        doc["table"]["metrics"] = ["std", "rmse"]
+
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [], two_metrics))
+    metrics = pd.concat([planted({(v, s): [0.1, 0.1] for v in (A, B) for s in ("u", "sigma_u")}).assign(metric=m)
+                         for m in ("std", "rmse")])
+    lines = markdown_table(exp, summarise(metrics)).splitlines()
+    header = next(line for line in lines if line.startswith("| variant |"))
+    assert header == ("| variant | std (e_u) | std (e_u) paper | std (e_sigma_u) | std (e_sigma_u) paper | rmse (e_u) | "
+                      "rmse (e_sigma_u) |")
+    assert next(line for line in lines if line.startswith(f"| {B} |")).split(" | ")[2] == "0.09"
+    other, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "near_paper", "metric": "rmse", "factor": 2,
+                                                            "signals": ["u"], "text": "near"}], two_metrics))
+    (res,) = evaluate(other, metrics)
+    assert res.not_checked == "near_paper: the paper's values (table.paper) are of the table's first metric 'std'"

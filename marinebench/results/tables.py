@@ -93,7 +93,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """Multi-scenario layout (Tijjani Table III): a row per (metric, signal, scenario), a column per variant,
     each followed by the paper's value when given."""
     spec = exp.table
-    names = spec.metrics or [spec.metric] if spec is not None else [exp.metrics[0].label]
+    names = spec.shown if spec is not None else [exp.metrics[0].label]
     signals = spec.signals if spec is not None else ["depth", "yaw"]
     paper = spec.paper if spec is not None else None
     display = spec.display if spec is not None else {}
@@ -128,8 +128,8 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
 
 
 def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
-    """``table.md``: a row per variant, a column per (metric, signal) with the paper's value beside ours when the
-    table has one metric, and optionally a row of one variant's change relative to another (``table.relative``).
+    """``table.md``: a row per variant, a column per (metric, signal) with the paper's value beside each of the
+    first metric's (the paper's values are of that metric), and optionally a row of one variant's change relative to another (``table.relative``).
     A multi-scenario experiment gets :func:`study_table`'s layout."""
     if exp.scenarios is not None:
         return study_table(exp, summary)
@@ -137,22 +137,22 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     if spec is None:
         names, signals, title, paper, display = [exp.metrics[0].label], exp.metrics[0].signals, None, None, {}
     else:
-        names, signals, title, paper, display = spec.metrics or [spec.metric], spec.signals, spec.title, spec.paper, spec.display
+        names, signals, title, paper, display = spec.shown, spec.signals, spec.title, spec.paper, spec.display
     s = summary.set_index(["variant", "signal", "metric"])
     multi = len(names) > 1
-    side_by_side = paper is not None and not multi  # the paper's column beside each of ours
+    paper_of = names[0] if paper is not None else None  # the paper's column beside each of this metric's
     columns = [(name, sig) for name in names for sig in signals]
 
     lines = [f"## {title or f'{exp.name}: {names[0]}'}", ""]
     lines += _preamble(exp, "; ".join(_window(exp, n) for n in names),
                        f"scenario `{exp.scenario.name}`, root seed {exp.seed}", paper)
-    lines += _grid(_variant_header(columns, display, multi, side_by_side))
+    lines += _grid(_variant_header(columns, display, multi, paper_of))
 
     def row(label: str, cell, paper_key: str) -> str:
         cells = [label]
         for name, sig in columns:
             cells.append(cell(name, sig))
-            if side_by_side:
+            if name == paper_of:
                 cells.append(fmt(paper.values.get(paper_key, {}).get(sig, float("nan"))))
         return "| " + " | ".join(cells) + " |"
 
@@ -172,14 +172,15 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _variant_header(columns: list[tuple[str, str]], display, multi: bool, side_by_side: bool) -> list[str]:
+def _variant_header(columns: list[tuple[str, str]], display, multi: bool, paper_of: str | None) -> list[str]:
     """``variant``, then a column per (metric, signal): named by the metric when there are several, else 'ours',
-    each followed by the paper's when ``side_by_side``."""
+    each of metric ``paper_of``'s followed by the paper's."""
     header = ["variant"]
     for name, sig in columns:
         d = display.get(f"{name}/{sig}")
         label = LABELS.get(sig, sig) + (f" [{d.unit}]" if d and d.unit else "")
-        header += [f"{name} ({label})" if multi else f"{label} ours"] + ([f"{label} paper"] if side_by_side else [])
+        ours = f"{name} ({label})" if multi else f"{label} ours"
+        header += [ours] + ([f"{ours.removesuffix(' ours')} paper"] if name == paper_of else [])
     return header
 
 
