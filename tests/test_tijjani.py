@@ -320,3 +320,17 @@ def test_study_table_puts_each_papers_value_in_its_own_row():
     assert rows["rmse yaw [1e-2 rad]", "S2-C1"][3::2] == ["2.56", "1.54", "1.47"]
     assert rows["int depth [N² s]", "S1"][3::2] == ["291", "290", "296"]
     assert rows["rmse depth [1e-2 m]", "S3"][3::2] == ["–", "–", "1.94"]
+
+
+def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
+    """A push on depth alone: depth's recovery is timed from its end; yaw, pushed by nothing, has no recovery
+    time (it would otherwise be scored after another signal's push)."""
+    doc = {"scenario": {"from": str(ROOT / "scenarios" / "rov_s3.yaml"), "horizon": 6.0,
+                        "pushes": [{"t_start": 2.0, "duration": 0.1, "force": [68.7, 0.0]}]},
+           "seeds": 1, "variants": [{"name": "cdo_srise", "controller": {"kind": "srise", "feedback": "cdo"}}],
+           "metrics": [{"kind": "recovery", "name": "recovery", "tol": {"depth": 0.01, "yaw": 0.0175}, "window": 3.0,
+                        "against": "reference"}]}
+    exp, _ = load_experiment(write(tmp_path, doc))
+    m = run(exp, traces=False).metrics
+    rec = m[m["metric"] == "recovery"]
+    assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
