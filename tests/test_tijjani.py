@@ -328,9 +328,10 @@ def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
     doc = {"scenario": {"from": str(ROOT / "scenarios" / "rov_s3.yaml"), "horizon": 6.0,
                         "pushes": [{"t_start": 2.0, "duration": 0.1, "force": [68.7, 0.0]}]},
            "seeds": 1, "variants": [{"name": "cdo_srise", "controller": {"kind": "srise", "feedback": "cdo"}}],
-           "metrics": [{"kind": "recovery", "name": "recovery", "tol": {"depth": 0.01, "yaw": 0.0175}, "window": 3.0,
-                        "against": "reference"}]}
+           "metrics": [{"kind": "recovery", "name": f"recovery_{against}", "tol": {"depth": 0.01, "yaw": 0.0175},
+                        "window": 3.0, "against": against} for against in ("reference", "undisturbed")]}
     exp, _ = load_experiment(write(tmp_path, doc))
     m = run(exp, traces=False).metrics
-    rec = m[m["metric"] == "recovery"]
-    assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
+    for against in ("reference", "undisturbed"):  # undisturbed: against the same run without the push
+        rec = m[m["metric"] == f"recovery_{against}"]
+        assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
