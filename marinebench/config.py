@@ -400,8 +400,8 @@ class Experiment(BaseModel):
             return f"unknown scenarios {sorted(set(claim.scenarios) - set(self.scenario_names))}"
         if claim.kind == "near_paper" and (self.table is None or self.table.paper is None):
             return "near_paper needs the table's paper values"
-        if claim.kind == "near_paper" and self.scenarios is None and metric != self.table.shown[0]:
-            return f"near_paper: the paper's values (table.paper) are of the table's first metric '{self.table.shown[0]}'"
+        if claim.kind == "near_paper" and self.scenarios is None and metric != (first := self.table.shown[0]):
+            return f"near_paper: the paper's values (table.paper) are of the table's first metric '{first}'"
         return None
 
     def _fill_signals(self) -> None:

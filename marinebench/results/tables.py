@@ -129,8 +129,8 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
 
 def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """``table.md``: a row per variant, a column per (metric, signal) with the paper's value beside each of the
-    first metric's (the paper's values are of that metric), and optionally a row of one variant's change relative to another (``table.relative``).
-    A multi-scenario experiment gets :func:`study_table`'s layout."""
+    first metric's (the paper's values are of that metric), and optionally a row of one variant's change relative
+    to another (``table.relative``). A multi-scenario experiment gets :func:`study_table`'s layout."""
     if exp.scenarios is not None:
         return study_table(exp, summary)
     spec = exp.table
