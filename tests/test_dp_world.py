@@ -31,6 +31,18 @@ def test_events_happen_at_configured_times():
     assert np.isclose(w.events(22.5)[0], quarter) and np.isclose(w.events(57.5)[0], quarter)
 
 
+def measured(world: DpWorld, n_steps: int, pose=None) -> np.ndarray:
+    """The measurement y after ``begin_step`` at each of the first ``n_steps`` steps, ``(n_steps, B, 3)``; the plant
+    state is ``pose(t)`` (default: at rest at the origin)."""
+    rest = np.zeros((len(world.x0), 9))
+    ys = []
+    for k in range(n_steps):
+        t = k * world.sc.dt
+        world.begin_step(k, t, rest if pose is None else pose(t))
+        ys.append(world.y.copy())
+    return np.array(ys)
+
+
 def test_stationary_gauss_markov_reading():
     sc = DpScenario(name="n", horizon=10, waves=None, sensors={"gnss_sigma": 1.5, "sigma_is": "stationary"})
     w = DpWorld(sc, 0, np.arange(4000))
@@ -39,8 +51,7 @@ def test_stationary_gauss_markov_reading():
     # a wrong driving std shows within a few samples)
     fast = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"gm_time_constant": 2.0})}), 0,
                    np.arange(4000))
-    for k in range(0, 201, fast.every):
-        fast.begin_step(k, k * sc.dt, np.zeros((4000, 9)))
+    measured(fast, 201)  # ten samples
     assert abs(fast.gm[:, :2].std() / 1.5 - 1) < 0.05
     assert abs(fast.gm[:, 2].std() / np.deg2rad(0.3) - 1) < 0.05  # the heading's own sigma (Table I: 0.3 deg)
     lit = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"sigma_is": "driving"})}), 0, np.arange(3))
@@ -56,16 +67,8 @@ def test_sensor_sample_time_must_be_on_the_step_grid():
 def test_gauss_markov_between_samples_hold_or_linear():
     """'linear' passes through the same eq. (48) samples as 'hold' and interpolates in between."""
     base = {"name": "g", "horizon": 5, "waves": None, "sensors": {"gnss_sigma": 1.0, "notch": False}}
-    x = np.zeros((2, 9))
-    ys = {}
-    for mode in ("hold", "linear"):
-        sc = DpScenario(**{**base, "sensors": {**base["sensors"], "between_samples": mode}})
-        w = DpWorld(sc, 3, np.arange(2))
-        ys[mode] = []
-        for k in range(81):
-            w.begin_step(k, k * sc.dt, x)
-            ys[mode].append(w.y.copy())
-    hold, lin = np.array(ys["hold"]), np.array(ys["linear"])
+    hold, lin = (measured(DpWorld(DpScenario(**{**base, "sensors": {**base["sensors"], "between_samples": mode}}), 3,
+                                  np.arange(2)), 81) for mode in ("hold", "linear"))
     np.testing.assert_array_equal(hold[::20], lin[::20])  # identical at the 1 s samples
     assert np.ptp(hold[1:20], axis=0).max() == 0  # staircase
     np.testing.assert_allclose(lin[10], 0.5 * (hold[0] + hold[20]))  # halfway between samples
@@ -98,14 +101,9 @@ def test_notch_runs_at_the_measurement_rate_with_held_measurements():
     the notch frequency w0 (wave-like) is taken out of the measurement once the filter has settled."""
     sc = DpScenario(name="h", horizon=200, waves=None,
                     sensors={"hold": "measurement", "gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "notch_w0": 1.0})
-    w = DpWorld(sc, 0, np.arange(1))
-    x = np.zeros((1, 9))
-    ys = []
-    for k in range(round(sc.horizon / sc.dt)):
-        x[0, 0] = np.sin(k * sc.dt)
-        w.begin_step(k, k * sc.dt, x)
-        ys.append(w.y[0, 0])
-    assert np.abs(ys[-400:]).max() < 0.05
+    surge = measured(DpWorld(sc, 0, np.arange(1)), round(sc.horizon / sc.dt),
+                     lambda t: np.array([[np.sin(t), *[0.0] * 8]]))[:, 0, 0]
+    assert np.abs(surge[-400:]).max() < 0.05
 
 
 def test_notch_starts_settled_on_the_first_measurement():
@@ -114,22 +112,15 @@ def test_notch_starts_settled_on_the_first_measurement():
     sc = DpScenario(name="r", horizon=20, waves=None, initial={"eta": [10.0, -5.0, 0.3]},
                     sensors={"gnss_sigma": 0.0, "heading_sigma_deg": 0.0})
     w = DpWorld(sc, 0, np.arange(2))
-    for k in range(100):
-        w.begin_step(k, k * sc.dt, w.x0)
-        np.testing.assert_allclose(w.y, w.x0[:, :3], atol=1e-9)
+    ys = measured(w, 100, lambda t: w.x0)
+    np.testing.assert_allclose(ys, np.broadcast_to(w.x0[:, :3], ys.shape), atol=1e-9)
 
 
 def test_white_heading_noise_option():
     """heading_noise 'white': a fresh N(0, 0.3 deg) every step, uncorrelated; North/East keep eq. (48)."""
     sc = DpScenario(name="w", horizon=100, waves=None,
                     sensors={"heading_sigma_deg": 0.3, "heading_noise": "white", "notch": False})
-    w = DpWorld(sc, 0, np.arange(3))
-    x = np.zeros((3, 9))
-    ys = []
-    for k in range(2001):
-        w.begin_step(k, k * sc.dt, x)
-        ys.append(w.y.copy())
-    psi = np.array(ys)[:, :, 2]
+    psi = measured(DpWorld(sc, 0, np.arange(3)), 2001)[:, :, 2]
     assert abs(psi.std() / np.deg2rad(0.3) - 1) < 0.03
     assert abs(np.corrcoef(psi[1:].ravel(), psi[:-1].ravel())[0, 1]) < 0.05
     gm = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"heading_noise": "gauss_markov"})}),
@@ -137,12 +128,8 @@ def test_white_heading_noise_option():
     white = DpWorld(sc, 0, np.arange(3))
     assert (white.gm[:, 2] == 0).all() and (gm.gm[:, 2] != 0).all() and np.array_equal(white.gm[:, :2], gm.gm[:, :2])
     # no Gauss-Markov heading error on top: over 1000 s the white error averages out (a drift would not)
-    long = DpWorld(sc.model_copy(update={"horizon": 1000.0}), 0, np.arange(3))
-    psi = []
-    for k in range(20001):
-        long.begin_step(k, k * sc.dt, x)
-        psi.append(long.y[:, 2].copy())
-    assert np.abs(np.mean(psi, axis=0)).max() < 0.05 * np.deg2rad(0.3)
+    psi = measured(DpWorld(sc.model_copy(update={"horizon": 1000.0}), 0, np.arange(3)), 20001)[:, :, 2]
+    assert np.abs(psi.mean(axis=0)).max() < 0.05 * np.deg2rad(0.3)
 
 
 def test_norm_integral_matches_numpy():
