@@ -17,6 +17,15 @@ def sorted_values(frame) -> list[float]:
     return frame.sort_values(["variant", "seed", "signal", "metric"])["value"].tolist()
 
 
+def md_row(table: str, *cells: str) -> list[str]:
+    """The cells of the first row of a markdown ``table`` that starts with ``cells``."""
+    for line in table.splitlines():
+        parts = [c.strip() for c in line.strip().strip("|").split("|")]
+        if parts[: len(cells)] == list(cells):
+            return parts
+    raise AssertionError(f"no row {cells} in\n{table}")
+
+
 def write_tiny(directory: Path, horizon: float = 4.0) -> Path:
     """A short noisy experiment with two variants, two seeds, a table and two figures."""
     doc = {

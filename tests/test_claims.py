@@ -14,7 +14,7 @@ from marinebench.cli import app
 from marinebench.loading import load_experiment
 from marinebench.results.claims import bootstrap_ci, evaluate
 
-from .conftest import ROOT, write_tiny
+from .conftest import ROOT, md_row, write_tiny
 
 runner = CliRunner()
 
@@ -204,11 +204,10 @@ def test_with_several_table_metrics_the_papers_values_sit_beside_the_first(tmp_p
     exp, _ = load_experiment(tiny_with_claims(tmp_path, [], two_metrics))
     metrics = pd.concat([planted({(v, s): [0.1, 0.1] for v in (A, B) for s in ("u", "sigma_u")}).assign(metric=m)
                          for m in ("std", "rmse")])
-    lines = markdown_table(exp, summarise(metrics)).splitlines()
-    header = next(line for line in lines if line.startswith("| variant |"))
-    assert header == ("| variant | std (e_u) | std (e_u) paper | std (e_sigma_u) | std (e_sigma_u) paper | rmse (e_u) | "
-                      "rmse (e_sigma_u) |")
-    assert next(line for line in lines if line.startswith(f"| {B} |")).split(" | ")[2] == "0.09"
+    table = markdown_table(exp, summarise(metrics))
+    assert md_row(table, "variant") == ["variant", "std (e_u)", "std (e_u) paper", "std (e_sigma_u)",
+                                        "std (e_sigma_u) paper", "rmse (e_u)", "rmse (e_sigma_u)"]
+    assert md_row(table, B)[2] == "0.09"
     other, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "near_paper", "metric": "rmse", "factor": 2,
                                                             "signals": ["u"], "text": "near"}], two_metrics))
     (res,) = evaluate(other, metrics)

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 
-from .conftest import ROOT
+from .conftest import ROOT, md_row
 
 EXAMPLE = ROOT / "examples" / "custom_observer"
 runner = CliRunner()
@@ -154,10 +154,7 @@ def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_examp
     assert rmse["pid", "depth"] != rmse["cdo_pid", "depth"]  # feedback: cdo feeds it the CDO's estimates
     table = (d / "table.md").read_text()
     assert "rmse (depth [1e-2 m])" in table  # table.display applies to single-scenario tables too
-    lines = table.splitlines()
-    header = next(line for line in lines if line.startswith("| variant |")).strip("|").split("|")
-    pid = next(line for line in lines if line.startswith("| pid |")).strip("|").split("|")
-    cell = pid[[h.strip() for h in header].index("rmse (depth [1e-2 m])")].strip()
+    cell = md_row(table, "pid")[md_row(table, "variant").index("rmse (depth [1e-2 m])")]
     assert cell.startswith(f"{100 * rmse['pid', 'depth']:.3g} [")  # ours x 100, in the displayed unit
     designs = json.loads((d / "manifest.json").read_text())["designs"]
     source = controller_example.parent / "pid.py"

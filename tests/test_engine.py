@@ -8,7 +8,7 @@ from marinebench.errors import StiffnessError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
 
-from .conftest import ROOT
+from .conftest import ROOT, md_row
 
 
 def short(tiny_config, *sets):
@@ -93,8 +93,7 @@ def test_diverged_runs_are_flagged_not_averaged(tiny_config):
     from marinebench.results.tables import markdown_table
 
     table = markdown_table(r.experiment, r.summary)
-    liu_row, other_row = (next(line for line in table.splitlines() if line.startswith(f"| {v} |"))
-                          for v in ("liu_eps0.2", "proposed_d1.2"))
+    liu_row, other_row = (" | ".join(md_row(table, v)) for v in ("liu_eps0.2", "proposed_d1.2"))
     assert "(2 diverged)" in liu_row and "diverged" not in other_row
 
 

@@ -8,6 +8,8 @@ import pytest
 from marinebench.config import SweepParam, SweepSpec
 from marinebench.experiments.sweep import sweep_claims, sweep_table
 
+from .conftest import md_row as row
+
 
 def synthetic(seeds=(0, 1)) -> pd.DataFrame:
     """J = (10 - 5 k) (1 + 0.1 seed) for 'a', twice that for 'b'; J = delta (1 + 0.1 seed) on a log grid."""
@@ -26,14 +28,6 @@ SPEC = SweepSpec(variant="x", params={
     "k": SweepParam(key="k", range=(0, 1), probes=[0.0, 0.75]),
     "delta": SweepParam(key="delta", range=(0.1, 10), spacing="log", probes=[1.0, 10.0], trend=(1.0, 10.0)),
 })
-
-
-def row(table: str, *cells: str) -> list[str]:
-    for line in table.splitlines():
-        parts = [c.strip() for c in line.strip("|").split("|")]
-        if parts[: len(cells)] == list(cells):
-            return parts
-    raise AssertionError(f"no row {cells} in\n{table}")
 
 
 def test_probes_changes_trends_and_group_ratios():

@@ -21,7 +21,7 @@ from marinebench.loading import load_experiment, load_scenario, preflight
 from marinebench.rov_scenario import min_jerk
 from marinebench.sim.recorders import RecoveryTime
 
-from .conftest import ROOT
+from .conftest import ROOT, md_row
 
 
 @pytest.mark.parametrize("mu", [0.2, 0.35, 1.0])
@@ -313,13 +313,11 @@ def test_study_table_puts_each_papers_value_in_its_own_row():
 
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     summary = pd.DataFrame([], columns=["scenario", "variant", "signal", "metric", "mean", "ci_low", "ci_high", "n", "n_diverged"])
-    cells = [[c.strip() for c in line.strip("|").split("|")] for line in study_table(exp, summary).splitlines()
-             if line.startswith(("| rmse", "| int"))]
-    rows = {tuple(c[:2]): c for c in cells}
+    table = study_table(exp, summary)
     # columns: index, scenario, then (ours, paper) per variant: rise, srise, cdo_srise
-    assert rows["rmse yaw [1e-2 rad]", "S2-C1"][3::2] == ["2.56", "1.54", "1.47"]
-    assert rows["int depth [N² s]", "S1"][3::2] == ["291", "290", "296"]
-    assert rows["rmse depth [1e-2 m]", "S3"][3::2] == ["–", "–", "1.94"]
+    assert md_row(table, "rmse yaw [1e-2 rad]", "S2-C1")[3::2] == ["2.56", "1.54", "1.47"]
+    assert md_row(table, "int depth [N² s]", "S1")[3::2] == ["291", "290", "296"]
+    assert md_row(table, "rmse depth [1e-2 m]", "S3")[3::2] == ["–", "–", "1.94"]
 
 
 def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
