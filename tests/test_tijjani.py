@@ -76,6 +76,56 @@ def test_sample_noise_gain_matches_a_direct_simulation_and_the_cdo_passes_more_n
     assert sample_noise_gain(eo, h, 0.1, True) > 1.4 * sample_noise_gain(eo, h, predictor=False)
 
 
+def test_sampled_flow_is_the_error_flow_of_eq_38_between_samples():
+    """expm(F h) of ``sampled_flow`` against eq. (38) integrated directly (truth at rest, w reset to the sample at
+    t = 0): x_hat' = A x_hat + L (w - x_hat_1), w' = x_hat_2 + K_w (w - x_hat_1). A large K_w makes its sign count."""
+    from scipy.integrate import solve_ivp
+    from scipy.linalg import expm
+
+    theta, h, k_w = 24.39, 0.05, 5.0
+    lk = np.array([theta, theta**2, theta**3]) * np.array(BINOMIAL)
+
+    def eq38(_, s):
+        x, w = s[:3], s[3]
+        return [x[1] + lk[0] * (w - x[0]), x[2] + lk[1] * (w - x[0]), lk[2] * (w - x[0]), x[1] + k_w * (w - x[0])]
+
+    start = np.array([0.02, -0.3, 4.0, 0.0])  # an estimation error; w = y = 0 just after the sample
+    direct = solve_ivp(eq38, (0, h), start, rtol=1e-11, atol=1e-13).y[:, -1]
+    assert expm(sampled_flow(lk, k_w) * h) @ start == pytest.approx(direct, rel=1e-7, abs=1e-10)
+
+
+def test_sample_noise_gain_averages_the_variance_over_the_period():
+    """The period average of ``sample_noise_gain`` (midpoint rule) against an adaptive quadrature of the same
+    variance, E(t) P E(t)^T with P the post-sample covariance of the discrete Lyapunov equation."""
+    from scipy.integrate import quad_vec
+    from scipy.linalg import expm, solve_discrete_lyapunov
+
+    theta, h, k_w = 24.39, 0.05, 0.1
+    cdo = np.array([theta, theta**2, theta**3]) * np.array(design_lmi(0.35).k_star)
+    F = sampled_flow(cdo, k_w)
+    P = solve_discrete_lyapunov(np.diag([1.0, 1.0, 1.0, 0.0]) @ expm(F * h), np.diag([0.0, 0.0, 0.0, 1.0]))
+    mean_var = quad_vec(lambda s: (expm(F * s) @ P @ expm(F * s).T)[0, 0], 0, h, epsrel=1e-10)[0] / h
+    assert sample_noise_gain(cdo, h, k_w) == pytest.approx(np.sqrt(mean_var), rel=2e-4)
+
+
+def test_the_cdo_lmi_design_at_the_default_decay_rate_is_the_documented_one():
+    """docs/tijjani.md quotes K* and the poles of the default design (mu = 0.35, theta = 24.39); P >= I fixes the
+    scale of (40), so the gain does not depend on the solver's choice of scale."""
+    d = design_lmi(0.35)
+    assert np.array(d.k_star) == pytest.approx([1.40, 0.94, 0.21], abs=0.006)
+    poles = np.sort_complex(d.poles_normalised * 24.39)  # rad/s, printed to one decimal
+    assert poles.real == pytest.approx([-12.3, -12.3, -9.7], abs=0.05)
+    assert poles.imag == pytest.approx([-13.1, 13.1, 0.0], abs=0.05)
+
+
+def test_verify_lmi_refuses_a_slightly_violated_lmi_40():
+    """The numpy re-check holds (40) to its tolerance: S a thousandth of its size too small fails it."""
+    d = design_lmi(0.35)
+    verify_lmi(np.array(d.k_star), d.P, d.S, 1e-3, 0.35)  # the solution itself passes
+    with pytest.raises(DesignError, match="numpy check"):
+        verify_lmi(np.array(d.k_star), d.P, d.S - 1e-3 * np.abs(d.S).max() * np.eye(3), 1e-3, 0.35)
+
+
 def write(tmp_path, doc, name="x.yaml"):
     path = tmp_path / name
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
