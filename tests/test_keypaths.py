@@ -2,13 +2,14 @@
 
 import copy
 from pathlib import Path
+from typing import Literal
 
 import pytest
-from pydantic import ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from marinebench.config import Experiment
 from marinebench.errors import ConfigError
-from marinebench.keypaths import key_path, unknown_key_hint
+from marinebench.keypaths import key_path, near_misses, nested_keys, unknown_key_hint
 from marinebench.loading import load_scenario, resolve_document
 
 
@@ -141,3 +142,45 @@ def test_every_bad_leaf_is_named_by_a_key_of_the_document(config):
                 assert _resolves(bad, parts[:-1]), (path, value, str(error))
                 checked += 1
     assert checked > 50
+
+
+class _Gain(BaseModel):
+    """A model whose kind's value is also one of its field names (only a union's member is named by its tag)."""
+
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["gain"] = "gain"
+    gain: float = 1.0
+
+
+class _Leaf(BaseModel):
+    horizon: float = 1.0
+
+
+class _Mid(BaseModel):
+    leaf: _Leaf = _Leaf()
+
+
+class _Deep(BaseModel):
+    mid: _Mid = _Mid()
+
+
+class _Root(BaseModel):
+    gain: _Gain = _Gain()
+    deep: _Deep = _Deep()  # horizon three keys down (deep.mid.leaf.horizon: four)
+    side: _Leaf = _Leaf()  # horizon one key down (side.horizon)
+    b_mid: _Mid = _Mid()  # two down (b_mid.leaf.horizon), before 'side' by name, after it by depth
+
+
+def test_a_single_models_kind_value_is_a_key_not_a_tag():
+    err = first_error(_Root, {"gain": {"gain": "x"}})
+    assert err["loc"] == ("gain", "gain")
+    assert key_path(_Root, err["loc"])[0] == "gain.gain"
+
+
+def test_keys_further_down_come_shortest_first_and_at_most_three_deep():
+    assert nested_keys([_Root], "horizon") == ["side.horizon", "b_mid.leaf.horizon"]
+
+
+def test_a_near_miss_is_found_whatever_its_case():
+    assert near_misses("vessel.xuu", ["X_uu", "X_u", "Y_v"])[0] == "X_uu"
+    assert near_misses("VESSEL.X_UU", ["x_uu", "y_vv"]) == ["x_uu"]
