@@ -523,3 +523,52 @@ def test_unpaired_ci_keeps_its_level_with_few_seeds():
     p_lo, p_hi = paired_bootstrap_ci(c - b)
     u_lo, u_hi = welch_ci(b, c)
     assert p_lo > 0 and u_lo < 0 < u_hi and (u_hi - u_lo) > 5 * (p_hi - p_lo)
+
+
+def frame(values: dict, status: dict | None = None) -> pd.DataFrame:
+    """A tidy metrics frame: values[(variant, signal)] -> per-seed values, metric 'std' (status per (v, s, seed))."""
+    rows = [("exp", "scen", v, seed, s, "std", x, (status or {}).get((v, s, seed), "ok"))
+            for (v, s), vals in values.items() for seed, x in enumerate(vals)]
+    return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+
+
+def test_welch_interval_of_runs_without_spread_is_the_difference():
+    """Every run the same on each side: the change is known exactly, so the interval is that point (and not
+    zero, a change)."""
+    assert welch_ci(np.array([1.0, 1.0, 1.0]), np.array([1.5, 1.5])) == (0.5, 0.5)
+
+
+def test_relative_interval_is_undefined_where_a_resampled_baseline_mean_is_zero():
+    lo, hi = relative_change_ci(np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 2.0]))
+    assert np.isnan(lo) and np.isnan(hi)
+
+
+def test_a_seed_that_diverged_on_both_sides_is_not_a_new_divergence():
+    vals = {("a", "u"): 0.1 + 0.01 * np.arange(6)}
+    status = {("a", "u", 2): "diverged"}
+    out = compare_frames(frame(vals, status), frame(vals, status))
+    assert out.verdict.tolist() == ["same"] and out.n.tolist() == [5]
+
+
+def test_unpaired_relative_interval_of_a_negative_baseline_has_the_sign_of_the_change():
+    base = np.array([-1.0, -1.1, -0.9, -1.05])
+    out = compare_frames(frame({("a", "u"): base}), frame({("a", "u"): 2 * base}), paired=False).iloc[0]
+    assert out.rel_change == pytest.approx(-1.0)
+    assert out.rel_ci_low <= out.rel_change <= out.rel_ci_high < 0
+
+
+def test_cells_of_one_verdict_are_listed_by_the_size_of_their_change():
+    base = {(v, "u"): 0.1 + 0.001 * np.arange(6) for v in ("a", "b", "c")}
+    cand = {("a", "u"): base[("a", "u")] * 1.2, ("b", "u"): base[("b", "u")] * 1.6, ("c", "u"): base[("c", "u")] * 1.4}
+    out = compare_frames(frame(base), frame(cand))
+    assert out.variant.tolist() == ["b", "c", "a"] and set(out.verdict) == {"worse"}
+
+
+def test_a_metric_where_higher_is_better_turns_the_verdict(monkeypatch):
+    from marinebench.results import compare
+
+    base = {("a", "u"): 0.1 + 0.001 * np.arange(6)}
+    up = {("a", "u"): base[("a", "u")] * 1.5}
+    assert compare_frames(frame(base), frame(up)).verdict.tolist() == ["worse"]
+    monkeypatch.setattr(compare, "HIGHER_IS_BETTER", {"std"})
+    assert compare_frames(frame(base), frame(up)).verdict.tolist() == ["better"]
