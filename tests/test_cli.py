@@ -101,6 +101,10 @@ BAD = {
     # every further error is named by its key, the claim's kind ('less') is not
     "two_errors": (lambda d: d.update(claims=[{"kind": "less", "a": "x", "b": "y", "signalz": ["u"]}], bogus=1),
                    "claims.0.text: Field required (and 2 more: claims.0.signalz, bogus)"),
+    # past three further errors the list is cut
+    "five_errors": (lambda d: d.update(claims=[{"kind": "less", "a": "x", "b": "y", "signalz": ["u"]}], bogus=1,
+                                       bogus2=2, bogus3=3),
+                    "claims.0.text: Field required (and 4 more: claims.0.signalz, bogus, bogus2, …)"),
     "wrong_type": (lambda d: d["variants"][0]["observer"].update(eps="fast"), "variants.0.observer.eps"),
     "out_of_range": (lambda d: d["scenario"].update(dt=-0.01), "scenario.dt: Input should be greater than 0"),
     # a relative path is read from the config's folder, which the message shows

@@ -184,3 +184,13 @@ def test_keys_further_down_come_shortest_first_and_at_most_three_deep():
 def test_a_near_miss_is_found_whatever_its_case():
     assert near_misses("vessel.xuu", ["X_uu", "X_u", "Y_v"])[0] == "X_uu"
     assert near_misses("VESSEL.X_UU", ["x_uu", "y_vv"]) == ["x_uu"]
+
+
+def test_a_key_is_named_in_the_file_of_its_own_scenario_not_one_with_a_longer_name():
+    """``scenarios.S10`` written inline in the experiment is not inside ``scenarios.S1`` (a file of its own)."""
+    from marinebench.loading import _origin_of
+
+    origins = {"": Path("exp.yaml"), "scenarios.S1": Path("s1.yaml")}
+    assert _origin_of("scenarios.S10.dt", origins) == Path("exp.yaml")
+    assert _origin_of("scenarios.S1.dt", origins) == Path("s1.yaml")
+    assert _origin_of("scenarios.S1", origins) == Path("s1.yaml")
