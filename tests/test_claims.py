@@ -183,6 +183,8 @@ def test_run_writes_claims_and_require_claims_gates(tmp_path):
     gated = runner.invoke(app, ["run", str(cfg), "--out", str(tmp_path / "out2"), "--require-claims"])
     assert gated.exit_code == 1 and "1 claim(s) fail" in gated.output
     assert "1 of 2 claims hold" in gated.output and (tmp_path / "out2" / "tiny" / "claims.md").exists()
+    resumed = runner.invoke(app, ["run", str(cfg), "--out", str(tmp_path / "out2"), "--require-claims", "--resume"])
+    assert resumed.exit_code == 1 and "up to date" in resumed.output  # not rerun, and its failing claim still counts
     report = runner.invoke(app, ["report", str(tmp_path / "out"), "--out", str(tmp_path / "r.html")])
     html = (tmp_path / "r.html").read_text()
     assert report.exit_code == 0 and "Claims checked: tiny" in html and "<b>fails</b> | cannot hold" not in html

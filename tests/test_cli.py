@@ -189,6 +189,13 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--horizon", "1e300"],
      "error: --horizon: 1e+300 s: 1e+300 s at dt=0.05 s is 2e+301 steps per run; at most 1e+08"),
     (["compare", "{cfg}", "{cfg}", "--rtol", "nan"], "error: --rtol/--atol: tolerances must be non-negative numbers"),
+    (["compare", "{cfg}", "{cfg}", "--atol", "-1"], "error: --rtol/--atol: tolerances must be non-negative numbers"),
+    # the edges of the sweep's ranges, and options that contradict each other
+    (["sweep", "k", "--n", "1"], "error: --n: from 2 to 1000 points per parameter"),
+    (["sweep", "k", "--horizon", "inf"], "error: --horizon: must be a positive, finite number of seconds"),
+    (["sweep", "k", "--chunk-size", "0"], "error: --chunk-size: must be at least 1"),
+    (["sweep", "k", "--jobs", "2", "--dask", "local"], "error: --jobs: runs the batches in local processes; with --dask"),
+    (["sweep", "k", "--grid", "--require-claims"], "error: --require-claims: a grid sweep maps where each claim holds"),
     (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
 ])
 def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):
@@ -664,3 +671,11 @@ def test_a_worker_that_dies_is_one_line(tmp_path, monkeypatch):
                                    "--jobs", "2", "--out", str(tmp_path)])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
     assert res.output.startswith("error: ") and "its --jobs worker process died (BrokenProcessPool" in res.output
+
+
+def test_run_warns_when_diverged_runs_are_left_out(tiny_config, tmp_path):
+    """A run that diverged is flagged, not averaged (test_engine), and run says so in one warning line."""
+    res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "out"), "--quiet",
+                              "--set", "variants.0.observer.eps=0.001", "--set", "engine.check_step=false"])
+    assert res.exit_code == 0, res.output
+    assert "warning: tiny: " in res.output and "metric values from diverged runs excluded" in res.output
