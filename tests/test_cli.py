@@ -201,7 +201,7 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
 def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):
     """click's usage errors (drawn by typer as a boxed panel) come out of ``marinebench`` as one line, exit 2."""
     with pytest.raises(SystemExit) as exit_:
-        main([a.format(cfg=tiny_config) for a in args] + ["--out", str(tmp_path / "o")] * (args[0] == "run"))
+        main([a.format(cfg=tiny_config) for a in args] + ["--out", str(tmp_path / "o")] * (args[0] in ("run", "sweep")))
     captured = capsys.readouterr()
     assert exit_.value.code == 2 and captured.out == ""
     lines = captured.err.strip().splitlines()
