@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pandas as pd
 import pytest
 import yaml
 
@@ -50,3 +51,11 @@ def write_tiny(directory: Path, horizon: float = 4.0) -> Path:
 def tiny_config(tmp_path: Path) -> Path:
     """A 4-s noisy experiment (runs in about a second)."""
     return write_tiny(tmp_path)
+
+
+def tidy_metrics(values: dict, experiment: str = "exp", scenario: str = "scen", status: dict | None = None) -> pd.DataFrame:
+    """A tidy metrics frame, metric 'std': values[(variant, signal)] -> per-seed values (seed = position), with
+    status[(variant, signal, seed)] where a run is not 'ok'."""
+    rows = [(experiment, scenario, v, seed, s, "std", x, (status or {}).get((v, s, seed), "ok"))
+            for (v, s), vals in values.items() for seed, x in enumerate(vals)]
+    return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])

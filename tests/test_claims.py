@@ -14,7 +14,7 @@ from marinebench.cli import app
 from marinebench.loading import load_experiment
 from marinebench.results.claims import bootstrap_ci, evaluate
 
-from .conftest import ROOT, md_row, write_tiny
+from .conftest import ROOT, md_row, tidy_metrics, write_tiny
 
 runner = CliRunner()
 
@@ -32,8 +32,7 @@ def tiny_with_claims(tmp_path, claims: list[dict], edit=None):
 
 def planted(values: dict[tuple[str, str], list[float]], scenario: str = "cs2_noisy") -> pd.DataFrame:
     """Tidy metrics: values[(variant, signal)] -> per-seed std values."""
-    rows = [("tiny", scenario, v, s, sig, "std", x, "ok") for (v, sig), xs in values.items() for s, x in enumerate(xs)]
-    return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+    return tidy_metrics(values, "tiny", scenario)
 
 
 A, B = "proposed_d1.2", "liu_eps0.2"

@@ -20,6 +20,8 @@ from marinebench.results.compare import (
     welch_ci,
 )
 
+from .conftest import tidy_metrics
+
 runner = CliRunner()
 
 
@@ -526,10 +528,7 @@ def test_unpaired_ci_keeps_its_level_with_few_seeds():
 
 
 def frame(values: dict, status: dict | None = None) -> pd.DataFrame:
-    """A tidy metrics frame: values[(variant, signal)] -> per-seed values, metric 'std' (status per (v, s, seed))."""
-    rows = [("exp", "scen", v, seed, s, "std", x, (status or {}).get((v, s, seed), "ok"))
-            for (v, s), vals in values.items() for seed, x in enumerate(vals)]
-    return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])
+    return tidy_metrics(values, status=status)
 
 
 def test_welch_interval_of_runs_without_spread_is_the_difference():
