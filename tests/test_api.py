@@ -41,3 +41,28 @@ def test_one_override_may_be_a_plain_string():
     assert mb.load(CONFIG, sets="seeds=3").seeds == 3
     with pytest.raises(ConfigError, match=r"--set: scenario\.dt: Input should be greater than 0"):
         mb.load(CONFIG, sets="scenario.dt=-1")
+
+
+def test_the_manifest_gives_the_step_of_one_world_at_the_top_and_of_several_per_scenario(tmp_path):
+    import json
+
+    one = mb.write(mb.run(mb.load(CONFIG, sets=SETS)), tmp_path / "one", config=CONFIG)
+    man = json.loads((one / "manifest.json").read_text())
+    assert (man["dt"], man["horizon"], man["steps"]) == (0.05, 120.0, 2400) and "scenarios" not in man
+    rov = ROOT / "configs" / "tijjani_table3.yaml"
+    sets = [f"scenarios.{s}.horizon=0.2" for s in ("S1", "S2-C1", "S2-C2", "S3")] + ["seeds=1"]
+    several = mb.write(mb.run(mb.load(rov, sets=sets)), tmp_path / "several", config=rov)
+    per = json.loads((several / "manifest.json").read_text())["scenarios"]
+    assert set(per) == {"S1", "S2-C1", "S2-C2", "S3"} and per["S1"]["horizon"] == 0.2
+
+
+def test_a_dp_world_names_a_model_mismatch_only_where_the_observers_model_differs():
+    from marinebench.dp_scenario import DpScenario
+    from marinebench.results.outputs import model_assumptions
+
+    plant = DpScenario(name="p", horizon=10).vessel
+    same = DpScenario(name="same", horizon=10, design_vessel=plant.model_dump())
+    other = DpScenario(name="other", horizon=10, vessel={"kind": "supply_shipx_lf"}, design_vessel={"kind": "supply_dp_linear"})
+    assert model_assumptions({"a": DpScenario(name="none", horizon=10), "b": same}) == []
+    assert model_assumptions({"c": other}) == [
+        "scenario other: plant supply_shipx_lf, observers designed and run on supply_dp_linear (model mismatch)"]
