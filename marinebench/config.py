@@ -475,6 +475,21 @@ class Experiment(BaseModel):
         return self.model_copy(update={"scenario": sc, "scenarios": None, "variants": variants, "figures": figures,
                                        "table": table, "sweep": sweep})
 
+    def model_label(self) -> str:
+        """The simulated vessel model(s), named in every table, claims file, figure and manifest: e.g.
+        ``leonard_like`` (Tijjani's stand-in ROV, which is not the paper's robot), or for a DP world whose
+        observers run on another model ``supply_shipx_lf (observers: supply_dp_linear)``."""
+        labels: list[str] = []
+        for name in self.scenario_names:
+            world = self.scenarios[name] if self.scenarios is not None else self.scenario
+            label = world.vessel.kind
+            design = getattr(world, "design_vessel", None)
+            if design is not None and design != world.vessel:
+                label += f" (observers: {design.kind})"
+            if label not in labels:
+                labels.append(label)
+        return ", ".join(labels)
+
     def sweep_scenario(self) -> str | None:
         """The scenario a multi-scenario experiment's sweep runs on: ``sweep.scenario``, or the swept variant's
         first (the experiment's first when it runs on all)."""

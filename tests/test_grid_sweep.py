@@ -109,7 +109,9 @@ def test_grid_claims_map_the_slices_of_the_other_parameter_where_a_claim_holds()
     assert groups.holding == [0.0, 1.0, 2.0, 3.0]  # hi = 2 lo on every slice
     empty = GridClaim(grows.claim, "J", "b", {0.0: [], 1.0: grows.slices[1.0]})
     assert (empty.holding, empty.failing) == ([1.0], [0.0])  # a slice with nothing checked does not hold
-    md = grid_claims_markdown(SimpleNamespace(name="syn", seeds=2, seed=0), [grows, probe], {"a": None, "b": 2.0})
+    exp = SimpleNamespace(name="syn", seeds=2, seed=0, model_label=lambda: "toy_vessel")
+    md = grid_claims_markdown(exp, [grows, probe], {"a": None, "b": 2.0})
+    assert "Simulated on the model `toy_vessel`." in md
     assert "| 1 | J grows with a (config's b = 2: holds) |" in md and "b ∈ {1, 2, 3} | b ∈ {0} |" in md
     assert "| 2 | b = 0 at least 10 % below b = 3 |" in md and "| 2 | a = 1, lo | z |" in md
 

@@ -383,3 +383,40 @@ def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
     for against in ("reference", "undisturbed"):  # undisturbed: against the same run without the push
         rec = m[m["metric"] == f"recovery_{against}"]
         assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
+
+
+def test_every_output_names_the_leonard_like_model(tmp_path, monkeypatch):
+    """The issue asks for the name ``leonard_like`` in every output: each table.md, claims.md and manifest and
+    every figure's title, of runs and of one-at-a-time and grid sweeps (their titles come from the code, not
+    from the configs' own wording)."""
+    import json
+
+    from matplotlib.figure import Figure
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    titles = []
+    save = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (titles.append(fig._suptitle.get_text()),
+                                                                save(fig, *a, **k))[1])
+    short = ["--set", "seeds=1"] + [x for s in ("S1", "S2-C1", "S2-C2", "S3") for x in ("--set", f"scenarios.{s}.horizon=4")]
+    commands = [
+        ["run", str(ROOT / "configs" / "tijjani_table3.yaml"), *short],
+        ["run", str(ROOT / "configs" / "tijjani_observers.yaml"), "--set", "seeds=1", "--set", "scenario.horizon=6"],
+        ["sweep", "--config", str(ROOT / "configs" / "tijjani_table3.yaml"), "yaw_alpha", "--n", "2", "--horizon", "4",
+         "--seeds", "1"],
+        ["sweep", "--config", str(ROOT / "configs" / "tijjani_table3.yaml"), "yaw_alpha", "yaw_k0", "--grid", "--n", "2",
+         "--horizon", "4", "--seeds", "1"],
+    ]
+    for i, args in enumerate(commands):
+        res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / str(i)), "--quiet"])
+        assert res.exit_code == 0, res.output
+    dirs = sorted(p.parent for p in tmp_path.rglob("manifest.json"))
+    assert len(dirs) == 4 and len(titles) == sum(len(list(d.glob("figures/*.png"))) for d in dirs) >= 4
+    for d in dirs:
+        assert json.loads((d / "manifest.json").read_text())["model"] == "leonard_like", d
+        for md in [d / "table.md", *d.glob("claims.md")]:
+            assert "Simulated on the model `leonard_like`." in md.read_text(), md
+    assert len(list(tmp_path.rglob("claims.md"))) >= 2  # the two runs' (the configs' sweeps may have no claims)
+    assert all("model leonard_like" in t for t in titles), titles

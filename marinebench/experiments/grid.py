@@ -27,6 +27,7 @@ from matplotlib.colors import LogNorm
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
 from marinebench.results.claims import Check, format_check, on_seeds, statistic_note
+from marinebench.results.tables import simulated_on
 
 Surfaces = dict[tuple[str, str], pd.DataFrame]
 
@@ -70,7 +71,7 @@ def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
     return np.exp(edges) if log else edges
 
 
-def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec) -> str:
+def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str = "") -> str:
     """table.md of a grid sweep: per group and signal the matrix of the seed-mean ``metric``, its lowest point,
     and how much each parameter moves it (the largest ratio max/min along a row or column)."""
     p1, p2 = _axes(metrics)
@@ -78,7 +79,8 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec) -> str:
     n_seeds = int(metrics["seed"].nunique())
     lines = [f"## Grid: {metric} over {p1} × {p2}", "",
              (f"Mean over {n_seeds} seeds" if n_seeds > 1 else "One run per point (seed index 0)")
-             + f"; rows {p1}, columns {p2}. Diverged runs are left out of the mean (– where all diverged).", ""]
+             + f"; rows {p1}, columns {p2}. Diverged runs are left out of the mean (– where all diverged)."
+             + simulated_on(model), ""]
     if not surfaces:
         return "\n".join([*lines, f"No values of metric '{metric}'.", ""])
     group = "group" if set(spec.groups) == {"default"} else "gnss"
@@ -139,8 +141,8 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             ax.set_title(f"{metric}: {g}" + (f", {sig}" if sig != "z" else ""), fontsize=9)
             ax.legend(fontsize=7, loc="best")
     n_seeds = int(metrics["seed"].nunique())
-    fig.suptitle(f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else ""),
-                 fontsize=10)
+    fig.suptitle(f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else "")
+                 + f"\nmodel {exp.model_label()}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -201,7 +203,7 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
              (f"Each claim of the sweep about one of the two parameters, checked as in a one-at-a-time sweep on "
               f"{on_seeds(exp.seeds)} (root seed {exp.seed}) along its parameter, on every slice of the other. The "
               "paper states each claim at its own tuning of the other parameter, so this maps where the statement holds; "
-              "it is not a verdict. " + statistic_note(exp.seeds)), "",
+              "it is not a verdict. " + statistic_note(exp.seeds) + simulated_on(exp.model_label())), "",
              "| # | claim | source | metric | along | holds at | fails at |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)

@@ -32,6 +32,7 @@ from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
 from marinebench.results.stored import read_tidy
+from marinebench.results.tables import simulated_on
 
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
 
@@ -219,10 +220,11 @@ def _fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
     return f(m) if not np.isfinite(lo) else f"{f(m)} [{f(lo)}, {f(hi)}]"
 
 
-def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = None) -> str:
+def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = None, model: str = "") -> str:
     """table.md: range of the seed-mean curve per parameter, group and signal; with ``spec``, the KPI at
     each parameter's probe values (and its change against the first probe, paired over seeds), the
-    Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first."""
+    Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first.
+    ``model``: the simulated vessel model (``Experiment.model_label``), named under the heading."""
     curves = _per_seed_curves(metrics, metric, spec.signals if spec else None)
     # the group column (metrics.csv's `gnss`) is headed `group` when the sweep has no named world groups
     group = "group" if spec is not None and set(spec.groups) == {"default"} else "gnss"
@@ -232,7 +234,7 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
     lines = [f"## Sweep: {metric} vs each parameter", "",
              (f"{n_seeds} runs per point (seeds 0..{n_seeds - 1}); curves are the mean over seeds, with 95 % "
               "Student-t intervals over seeds in brackets" if n_seeds > 1 else "One run per point (seed index 0)")
-             + "; min/max are those of the curve.", "",
+             + "; min/max are those of the curve." + simulated_on(model), "",
              f"| param | {group} | signal | points | min | at value | max | at value | diverged |",
              "|---|---|---|---|---|---|---|---|---|"]
     for (p, g, sig), c in curves.items():
@@ -396,7 +398,8 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
             ax.grid(alpha=0.3)
     n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    fig.suptitle(f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds})", fontsize=10)
+    fig.suptitle(f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}; model "
+                 f"{exp.model_label()})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -73,7 +73,8 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
             axes[i * 2 + 1].set_ylabel(f"error [{UNITS.get(sig, '-')}]")
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0)", fontsize=10)
+    fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0; model {exp.model_label()})",
+                 fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -102,7 +103,7 @@ def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_
         bottom.set_xlabel("time [s]")
         for ax in (top, mid, bottom):
             ax.legend(loc="best", fontsize=7)
-    fig.suptitle(f"{spec.title or spec.file} (seed 0, {exp.scenario.vessel.kind})", fontsize=10)
+    fig.suptitle(f"{spec.title or spec.file} (seed 0, model {exp.model_label()})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

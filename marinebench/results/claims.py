@@ -19,6 +19,7 @@ import pandas as pd
 
 from marinebench.claims import LessClaim, NearPaperClaim, OrderClaim, WithinClaim
 from marinebench.config import Experiment
+from marinebench.results.tables import simulated_on
 
 
 @dataclass
@@ -222,7 +223,8 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
     the column of scenarios, or of groups for a sweep)."""
     title = title or (exp.table.title if exp.table is not None else exp.name)
     lines = [f"## Claims checked: {title}", "",
-             (f"Checked on {on_seeds(exp.seeds)}, root seed {exp.seed}, per {where} and signal. "
+             (f"Checked on {on_seeds(exp.seeds)}, root seed {exp.seed}, per {where} and signal."
+              f"{simulated_on(exp.model_label())} "
               f"{statistic_note(exp.seeds)} A claim holds when every check holds on the means."), "",
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]

@@ -88,6 +88,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
         (tmp / "manifest.json").write_text(
             manifest(
                 experiment=exp.name,
+                model=exp.model_label(),
                 inputs_key=inputs_key(exp),
                 config_files={k or "experiment": str(v) for k, v in sources.items()},
                 seed=exp.seed,
@@ -122,7 +123,8 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
-        (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep) for metric in shown))
+        (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
+                                                for metric in shown))
         if claims:
             (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
         if mapped:
@@ -131,7 +133,7 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
         (tmp / "figures").mkdir()
         figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
         (tmp / "manifest.json").write_text(manifest(
-            experiment=exp.name, inputs_key=inputs_key(exp), config_files={"experiment": str(config)},
+            experiment=exp.name, model=exp.model_label(), inputs_key=inputs_key(exp), config_files={"experiment": str(config)},
             seed=exp.seed, seeds=exp.seeds, runs=len(exp.variants) * exp.seeds, params=params, grid=grid,
             horizon=exp.scenario.horizon, dt=exp.scenario.dt, **run_info,
             total_time_s=round(time.perf_counter() - started, 3),

@@ -71,12 +71,18 @@ def _shown(r: pd.Series, display) -> pd.Series:
     return r
 
 
+def simulated_on(model: str) -> str:
+    """The sentence naming the simulated vessel model (``Experiment.model_label``) in a table or claims file:
+    every output says which model its numbers come from (Tijjani's are on the assumed ``leonard_like``)."""
+    return f" Simulated on the model `{model}`." if model else ""
+
+
 def _preamble(exp: Experiment, windows: str, where: str, paper) -> list[str]:
     """The lines under a table's title: what 'ours' is (the metrics' windows, seeds, CI) and, when the table
     carries the paper's values, that those columns are copied, not computed."""
     over = (f"Mean over {exp.seeds} seeds with the 95% Student-t interval in brackets" if exp.seeds > 1
             else "One seed, so no interval")
-    lines = [f"Ours: {windows}. {over}; {where}."]
+    lines = [f"Ours: {windows}. {over}; {where}." + simulated_on(exp.model_label())]
     if paper is not None:
         units = paper.units
         lines.append(f"Columns marked *paper* are published values from {paper.source}, copied for comparison, "
