@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import expm, solve_discrete_lyapunov
+from scipy.linalg import expm
 
 from marinebench.errors import DesignError
 
@@ -109,27 +109,47 @@ def sampled_radius(k_star, theta: float, k_w: float, h: float) -> float:
     return float(np.abs(np.linalg.eigvals(expm(F * h)[:3, :3])).max())
 
 
-def sample_noise_gain(injection, h: float, k_w: float = 0.0, predictor: bool = True, quad: int = 64) -> float:
-    """Std of the position estimate per unit std of white noise on the samples (period ``h``), truth at rest.
+def sample_noise_gains(injections, h: float, k_w: float = 0.0, predictor: bool = True,
+                       halvings: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample error radius and sample-noise gain of a batch of injection gains (n, 3), truth at rest.
 
-    The state just after a sample (the output channel restarted from the noisy sample) has the stationary
-    covariance ``P = (J E) P (J E)^T + e4 e4^T`` with ``E = expm(F h)`` and ``J`` zeroing the output channel
-    (a discrete Lyapunov equation); the returned gain is ``sqrt`` of the position variance averaged over the
-    period (midpoint rule with ``quad`` points). It is the steady-state noise-to-estimate gain the RMSE sees
-    when the noise, not the motion, dominates (README, CDO vs EO).
+    The radius is that of ``sampled_radius`` (top-left 3x3 block of ``E = expm(F h)``). The gain is the std of the
+    position estimate per unit std of white noise on the samples (period ``h``): the state just after a sample
+    (the output channel restarted from the noisy sample) has the stationary covariance
+    ``P = (J E) P (J E)^T + e4 e4^T``, ``J`` zeroing the output channel (a discrete Lyapunov equation, solved by
+    a Kronecker product); the gain is ``sqrt`` of the position variance averaged over the period,
+    ``[X]_00 / h`` with ``X = int_0^h expm(F s) P expm(F s)^T ds`` computed exactly: Van Loan's block
+    exponential over ``h / 2**halvings``, then doubled (``X(2d) = X(d) + E(d) X(d) E(d)^T``), so that stiff
+    gains lose no accuracy. ``inf`` where the radius is >= 1. It is the steady-state noise-to-estimate gain the
+    RMSE sees when the noise, not the motion, dominates (docs/tijjani.md, CDO vs EO).
     """
-    F = sampled_flow(injection, k_w, predictor)
-    J = np.diag([1.0, 1.0, 1.0, 0.0])
-    Q = np.zeros((4, 4))
-    Q[3, 3] = 1.0
-    P = solve_discrete_lyapunov(J @ expm(F * h), Q)
-    step = expm(F * h / quad)
-    E = expm(F * h / (2 * quad))
-    var = 0.0
-    for _ in range(quad):
-        var += (E @ P @ E.T)[0, 0]
-        E = step @ E
-    return float(np.sqrt(var / quad))
+    F = np.stack([sampled_flow(g, k_w, predictor) for g in np.atleast_2d(np.asarray(injections, dtype=float))])
+    E = expm(F * h)
+    radius = np.abs(np.linalg.eigvals(E[:, :3, :3])).max(axis=1)
+    gain = np.full(len(F), np.inf)
+    ok = radius < 1
+    if not ok.any():
+        return radius, gain
+    F, K = F[ok], E[ok].copy()
+    K[:, 3, :] = 0.0  # J E: the output channel restarts from the sample
+    q = np.zeros(16)
+    q[15] = 1.0  # the sample's unit noise enters the output channel
+    kron = np.einsum("nij,nkl->nikjl", K, K).reshape(-1, 16, 16)
+    P = np.linalg.solve(np.eye(16) - kron, np.broadcast_to(q, (len(K), 16))[..., None])[..., 0].reshape(-1, 4, 4)
+    block = np.zeros((len(F), 8, 8))
+    block[:, :4, :4], block[:, :4, 4:], block[:, 4:, 4:] = F, P, -np.swapaxes(F, 1, 2)
+    M = expm(block * (h / 2**halvings))
+    step, X = M[:, :4, :4], M[:, :4, 4:] @ np.swapaxes(M[:, :4, :4], 1, 2)
+    for _ in range(halvings):
+        X = X + step @ X @ np.swapaxes(step, 1, 2)
+        step = step @ step
+    gain[ok] = np.sqrt(X[:, 0, 0] / h)
+    return radius, gain
+
+
+def sample_noise_gain(injection, h: float, k_w: float = 0.0, predictor: bool = True) -> float:
+    """``sample_noise_gains`` of one injection gain (the sample-noise gain, ``inf`` if it does not converge)."""
+    return float(sample_noise_gains(injection, h, k_w, predictor)[1][0])
 
 
 def check(k_star, theta: float, k_w: float, h: float, dof: str) -> float:
