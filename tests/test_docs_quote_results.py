@@ -169,6 +169,25 @@ def _table4_orderings() -> dict[str, float]:
     return module.analysis()
 
 
+@cache
+def _cdo_noise_frontier():
+    """docs/analysis/cdo_noise_frontier.py as a module (its cheap ``defaults``; the search itself runs by hand)."""
+    spec = importlib.util.spec_from_file_location("cdo_noise_frontier", ROOT / "docs" / "analysis" / "cdo_noise_frontier.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _frontier_gain(k_star: tuple[float, float, float]) -> list[float]:
+    """g and r in depth of the CDO with a quoted K* (the frontier point docs/tijjani.md names)."""
+    from marinebench.design.cdo import sample_noise_gains
+    from marinebench.observers.cdo import CdoParams
+
+    cdo = CdoParams(k_star=k_star)
+    (r,), (g,) = sample_noise_gains(cdo.injection(), _cdo_noise_frontier().H_DEPTH, cdo.k_w)
+    return [g, r]
+
+
 QUOTES = [
     Quote("README.md", "Our Liu rows land on the paper's (ratios {}–{})", lambda: _table3()["liu"]),
     Quote("docs/bejarano.md", "(ratios ours/paper {}–{} over the twelve cells)", lambda: _table3()["liu"]),
@@ -273,6 +292,14 @@ QUOTES = [
     Quote("README.md", "(largest error over 0.1–2 s: {} vs {} cm, {} vs {} rad)",
           lambda: [mean(OBS, "cdo", "depth", "peak_output", scale=cm), mean(OBS, "eo", "depth", "peak_output", scale=cm),
                    mean(OBS, "cdo", "yaw", "peak_output"), mean(OBS, "eo", "yaw", "peak_output")]),
+    Quote("docs/tijjani.md", "The defaults: EO r = {}, g = {}; CDO r = {}, g = {}; 20 % below the EO\n  needs g ≤ {}.",
+          lambda: [_cdo_noise_frontier().defaults()[k] for k in
+                   ("eo_default_radius", "eo_default_gain", "cdo_default_radius", "cdo_default_gain", "needed_gain")]),
+    Quote("docs/tijjani.md", "K* = [0.7129, 0.1352, 0.0089] (g = {}, r = {} after rounding)",
+          lambda: _frontier_gain((0.7129, 0.1352, 0.0089))),
+    Quote("docs/tijjani.md", "(default K*: {} and {}; EO {} and {})",
+          lambda: [mean(OBS, v, "depth", m, scale=100) for v in ("cdo", "eo") for m in ("rmse", "rmse_steady")]),
+    Quote("README.md", "at r ≤ 0.78: {} σ against the EO's 0.659 σ", lambda: _frontier_gain((0.7129, 0.1352, 0.0089))[:1]),
 ]
 
 
