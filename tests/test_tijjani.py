@@ -76,6 +76,31 @@ def test_sample_noise_gain_matches_a_direct_simulation_and_the_cdo_passes_more_n
     assert sample_noise_gain(eo, h, 0.1, True) > 1.4 * sample_noise_gain(eo, h, predictor=False)
 
 
+@pytest.mark.filterwarnings("ignore:An ill-conditioned matrix")
+def test_sample_noise_gain_stays_exact_for_stiff_gains_a_coarse_quadrature_gets_wrong():
+    """The period average is an exact integral (Van Loan, doubled), not a quadrature: for a stiff EO gain (poles
+    far faster than 1/h) it agrees with a 1024-point midpoint rule, which a 16-point rule misses by > 10 %; the
+    batched call gives each gain the value of the single one (docs/analysis/cdo_noise_frontier.py searches it)."""
+    from scipy.linalg import expm, solve_discrete_lyapunov
+
+    from marinebench.design.cdo import sample_noise_gains, sampled_flow
+
+    def midpoint(inj, h, quad):
+        F = sampled_flow(inj, 0.0, False)
+        q = np.zeros((4, 4))
+        q[3, 3] = 1.0
+        P = solve_discrete_lyapunov(np.diag([1.0, 1.0, 1.0, 0.0]) @ expm(F * h), q)
+        mids = [expm(F * h * (i + 0.5) / quad) for i in range(quad)]
+        return np.sqrt(np.mean([(E @ P @ E.T)[0, 0] for E in mids]))
+
+    stiff, mild = np.array([2.35e3, 4.5e6, 1e10]), np.array([3.0, 3.0, 1.0]) * 24.39 ** np.arange(1, 4)
+    radius, gain = sample_noise_gains(np.stack([stiff, mild]), 0.05, predictor=False)
+    assert radius[0] < 1 and gain[0] == pytest.approx(midpoint(stiff, 0.05, 1024), rel=1e-4)
+    assert abs(midpoint(stiff, 0.05, 16) / gain[0] - 1) > 0.1
+    assert gain[1] == pytest.approx(sample_noise_gain(mild, 0.05, predictor=False), rel=1e-12)
+    assert sample_noise_gains(np.array([1.0, 1.0, 1.0]) * -1, 0.05, predictor=False)[1][0] == np.inf
+
+
 def test_sampled_flow_is_the_error_flow_of_eq_38_between_samples():
     """expm(F h) of ``sampled_flow`` against eq. (38) integrated directly (truth at rest, w reset to the sample at
     t = 0): x_hat' = A x_hat + L (w - x_hat_1), w' = x_hat_2 + K_w (w - x_hat_1). A large K_w makes its sign count."""
