@@ -161,21 +161,18 @@ def _tuned_yaw(scenario: str) -> list[float]:
 
 
 @cache
-def _table4_orderings() -> dict[str, float]:
-    """docs/analysis/table4_orderings.py's linear programme (run here, from the designs, not read from a file)."""
-    spec = importlib.util.spec_from_file_location("table4_orderings", ROOT / "docs" / "analysis" / "table4_orderings.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.analysis()
-
-
-@cache
-def _cdo_noise_frontier():
-    """docs/analysis/cdo_noise_frontier.py as a module (its cheap ``defaults``; the search itself runs by hand)."""
-    spec = importlib.util.spec_from_file_location("cdo_noise_frontier", ROOT / "docs" / "analysis" / "cdo_noise_frontier.py")
+def _analysis(name: str):
+    """A script of docs/analysis/ as a module (run here, from the designs, not read from a file)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / "analysis" / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@cache
+def _table4_orderings() -> dict[str, float]:
+    """docs/analysis/table4_orderings.py's linear programme."""
+    return _analysis("table4_orderings").analysis()
 
 
 def _frontier_gain(k_star: tuple[float, float, float]) -> list[float]:
@@ -184,7 +181,7 @@ def _frontier_gain(k_star: tuple[float, float, float]) -> list[float]:
     from marinebench.observers.cdo import CdoParams
 
     cdo = CdoParams(k_star=k_star)
-    (r,), (g,) = sample_noise_gains(cdo.injection(), _cdo_noise_frontier().H_DEPTH, cdo.k_w)
+    (r,), (g,) = sample_noise_gains(cdo.injection(), _analysis("cdo_noise_frontier").H_DEPTH, cdo.k_w)
     return [g, r]
 
 
@@ -293,7 +290,7 @@ QUOTES = [
           lambda: [mean(OBS, "cdo", "depth", "peak_output", scale=cm), mean(OBS, "eo", "depth", "peak_output", scale=cm),
                    mean(OBS, "cdo", "yaw", "peak_output"), mean(OBS, "eo", "yaw", "peak_output")]),
     Quote("docs/tijjani.md", "The defaults: EO r = {}, g = {}; CDO r = {}, g = {}; 20 % below the EO\n  needs g ≤ {}.",
-          lambda: [_cdo_noise_frontier().defaults()[k] for k in
+          lambda: [_analysis("cdo_noise_frontier").defaults()[k] for k in
                    ("eo_default_radius", "eo_default_gain", "cdo_default_radius", "cdo_default_gain", "needed_gain")]),
     Quote("docs/tijjani.md", "K* = [0.7129, 0.1352, 0.0089] (g = {}, r = {} after rounding)",
           lambda: _frontier_gain((0.7129, 0.1352, 0.0089))),

@@ -89,17 +89,17 @@ def verify_lmi(k_star: np.ndarray, P: np.ndarray, S: np.ndarray, lam: float, mu:
 def sampled_flow(injection, k_w: float = 0.0, predictor: bool = True) -> np.ndarray:
     """4x4 flow between samples of the estimation error ``x_hat - x`` and the output-channel error ``w - y``.
 
-    ``injection`` is the 3-vector on the output error (Delta_theta K* for the CDO, [a_i / eps^i] for the EO).
+    ``injection`` is the 3-vector on the output error (or a batch (..., 3) -> (..., 4, 4)) (Delta_theta K* for the CDO, [a_i / eps^i] for the EO).
     The CDO's predictor obeys ``w' = x_hat_2 + K_w (w - x_hat_1)``; without it (``predictor=False``, the EO)
     the output channel is the held sample, constant between samples (with the truth at rest).
     """
-    lk = np.asarray(injection, dtype=float).reshape(3, 1)
-    F = np.zeros((4, 4))
-    F[:3, :3] = A - lk @ C
-    F[:3, 3:] = lk
+    lk = np.asarray(injection, dtype=float)
+    F = np.zeros((*lk.shape[:-1], 4, 4))
+    F[..., :3, :3] = A - lk[..., :, None] * C
+    F[..., :3, 3] = lk
     if predictor:
-        F[3, :3] = (C @ A - k_w * C).ravel()
-        F[3, 3] = k_w
+        F[..., 3, :3] = (C @ A - k_w * C).ravel()
+        F[..., 3, 3] = k_w
     return F
 
 
@@ -123,7 +123,7 @@ def sample_noise_gains(injections, h: float, k_w: float = 0.0, predictor: bool =
     gains lose no accuracy. ``inf`` where the radius is >= 1. It is the steady-state noise-to-estimate gain the
     RMSE sees when the noise, not the motion, dominates (docs/tijjani.md, CDO vs EO).
     """
-    F = np.stack([sampled_flow(g, k_w, predictor) for g in np.atleast_2d(np.asarray(injections, dtype=float))])
+    F = sampled_flow(np.atleast_2d(np.asarray(injections, dtype=float)), k_w, predictor)
     E = expm(F * h)
     radius = np.abs(np.linalg.eigvals(E[:, :3, :3])).max(axis=1)
     gain = np.full(len(F), np.inf)
