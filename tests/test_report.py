@@ -1,14 +1,17 @@
 """The HTML report: self-contained, every table and figure present, rendered by a real headless browser."""
 
+import json
 import re
 import shutil
 import subprocess
+from html import escape
 
 import pytest
 from matplotlib import image
 from typer.testing import CliRunner
 
 from marinebench.cli import app
+from marinebench.results.report import claims_overview, markdown_to_html, render_report
 
 from .conftest import write_tiny
 
@@ -89,3 +92,48 @@ def test_report_compares_other_root_seeds_only_unpaired(report, tmp_path):
     assert "Comparison with" in html and "Unpaired: each side" in html and "12 same" in html
     alone = runner.invoke(app, ["report", str(tmp_path / "s7"), "--out", str(tmp_path / "x.html"), "--unpaired"])
     assert alone.exit_code == 2 and "needs --compare BASELINE" in alone.output
+
+
+def test_markdown_subset_becomes_the_right_html():
+    """Headings keep their level, lists and pipe tables their structure (separator row dropped), inline code,
+    bold and italic are marked up, and everything else is escaped."""
+    md = ("# Title\n### Sub `a<b`\n\npara **bold** and *it* & more\n- one\n- two *x*\n\n"
+          "| a | b |\n|---|:-:|\n| 1 | `c` |\ntext")
+    assert markdown_to_html(md).splitlines() == [
+        "<h2>Title</h2>", "<h4>Sub <code>a&lt;b</code></h4>",
+        "<p>para <b>bold</b> and <i>it</i> &amp; more</p>",
+        "<ul>", "<li>one</li>", "<li>two <i>x</i></li>", "</ul>",
+        '<div class="scroll"><table><thead><tr><th>a</th><th>b</th></tr></thead><tbody>',
+        "<tr><td>1</td><td><code>c</code></td></tr>", "</tbody></table></div>", "<p>text</p>"]
+    assert markdown_to_html("###### six") == "<h6>six</h6>"  # h7 does not exist
+
+
+def test_report_shows_each_manifest_and_the_claims_overview(report, tmp_path):
+    root, out = report
+    html = out.read_text()
+    manifest = json.loads(next((root / "new").rglob("manifest.json")).read_text())
+    assert f"<tr><th>seed</th><td>{manifest['seed']}</td></tr>" in html
+    assert f"<tr><th>runs</th><td>{manifest['runs']}</td></tr>" in html
+    assert "(no manifest)" not in html and "<p>Assumptions:</p>" in html
+    name = next((root / "new").rglob("manifest.json")).parent.name
+    assert f'<li><a href="#{name}">{name}</a></li>' in html and html.count(f'<h2 id="{name}">{name}</h2>') == 1
+    assert all(f"<li>{escape(a)}</li>" in html for a in manifest["assumptions"])
+    direct = render_report(root / "new", compare_with=root / "base")  # the API pairs seeds by default, as the CLI
+    assert "Comparison with" in direct and "Unpaired" not in direct
+    bare = tmp_path / "bare"
+    shutil.copytree(root / "new", bare)
+    next(bare.rglob("manifest.json")).unlink()  # a results folder made by hand or by another tool
+    text = render_report(bare)
+    assert "<p>(no manifest)</p>" in text and "<p>Assumptions:</p>" not in text
+
+
+def test_claims_overview_counts_what_holds_and_lists_what_fails(tmp_path):
+    claims = [{"text": "a > b", "source": "T", "holds": True}, {"text": "c | d", "source": "T", "holds": False},
+              {"text": "unchecked", "source": "T", "holds": False, "not_checked": "no such signal"}]
+    for name, entries in (("x", claims), ("y", []), ("z", claims[:1])):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "manifest.json").write_text(json.dumps({"claims": entries}))
+    md = claims_overview({n: tmp_path / n for n in ("x", "y", "z")})
+    rows = [line for line in md.splitlines() if line.startswith(("| x", "| y", "| z"))]
+    assert rows == ["| x | 1\u00a0of\u00a03 | c / d |", "| z | 1\u00a0of\u00a01 |  |"]
+    assert claims_overview({"y": tmp_path / "y"}) == ""

@@ -1,0 +1,126 @@
+"""What the figures show: each curve is the right run's data (seed 0 of each variant, wherever it sits in the
+batch), errors are truth minus estimate, axes are scaled to the steady state, labels carry units and model."""
+
+import numpy as np
+import pytest
+
+from marinebench.loading import load_experiment
+from marinebench.plotting import figures
+
+from .conftest import ROOT, write_tiny
+
+# A batch of 2 variants x 2 seeds in shuffled order: seed 0 of variant 0 is column 3, of variant 1 column 2.
+RUN_VARIANT = np.array([1, 0, 1, 0])
+RUN_SEED = np.array([1, 1, 0, 0])
+SEED0 = {0: 3, 1: 2}
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """The figures a drawing function made (kept open instead of closed after saving)."""
+    kept, close = [], figures.plt.close
+    monkeypatch.setattr(figures.plt, "close", kept.append)
+    yield kept
+    for fig in kept:
+        close(fig)
+
+
+def traces(signals, n=201, horizon=4.0):
+    t = np.linspace(0.0, horizon, n)
+    rng = np.random.default_rng(7)
+    truth = {s: np.sin(t)[:, None] + 0.1 * np.arange(4)[None, :] + 0.01 * rng.standard_normal((n, 4)) for s in signals}
+    est = {s: truth[s] + 0.05 * rng.standard_normal((n, 4)) for s in signals}
+    for s in signals:
+        est[s][:5] += 50.0  # start-up peaking the y axes must not be scaled to
+    return t, truth, est
+
+
+def lines(ax):
+    return {line.get_label(): (line.get_xdata(), line.get_ydata()) for line in ax.get_lines()}
+
+
+def test_timeseries_plots_seed0_of_each_variant_its_error_and_scales_to_the_steady_state(tmp_path, drawn):
+    exp, _ = load_experiment(write_tiny(tmp_path))
+    spec = exp.figures[0].model_copy(update={"signals": ["u", "sigma_v"]})
+    t, truth, est = traces(["u", "sigma_v"])
+    path = tmp_path / "u.png"
+    figures.timeseries(exp, spec, t, truth, est, RUN_VARIANT, RUN_SEED, path)
+    assert path.stat().st_size > 0 and len(drawn) == 1
+    fig = drawn[0]
+    axes = fig.axes
+    assert len(axes) == 4  # a signal row and its error row, per signal
+    for i, sig in enumerate(["u", "sigma_v"]):
+        top, err = lines(axes[2 * i]), lines(axes[2 * i + 1])
+        assert list(top) == ["actual", "liu_eps0.2", "proposed_d1.2"]
+        np.testing.assert_array_equal(top["actual"][1], truth[sig][:, 2])  # the first seed-0 run's truth
+        for v, name in enumerate(["liu_eps0.2", "proposed_d1.2"]):
+            b = SEED0[v]
+            np.testing.assert_array_equal(top[name][1], est[sig][:, b])
+            np.testing.assert_array_equal(err[name][1], truth[sig][:, b] - est[sig][:, b])
+        late = t >= 1.0  # the first metric's t_start
+        lo, hi = axes[2 * i].get_ylim()
+        data = np.concatenate([truth[sig][late, 2], est[sig][late][:, [3, 2]].ravel()])
+        assert lo < data.min() and hi > data.max() and hi < 10.0  # the start-up spike (+50) is off the axis
+        span = data.max() - data.min()
+        assert hi - lo == pytest.approx(1.2 * span)
+        lo, hi = axes[2 * i + 1].get_ylim()
+        errors = (truth[sig] - est[sig])[late][:, [3, 2]]
+        assert lo == pytest.approx(errors.min() - 0.1 * np.ptp(errors)) and hi == pytest.approx(errors.max() + 0.1 * np.ptp(errors))
+    assert axes[0].get_ylabel() == "surge u [m/s]" and axes[1].get_ylabel() == "error [m/s]"
+    assert axes[2].get_ylabel() == "σ_v [m/s²]" and axes[-1].get_xlabel() == "time [s]"
+    assert "t ≥ 1 s" in fig._suptitle.get_text() and "model cybership2" in fig._suptitle.get_text()
+
+
+def test_timeseries_time_window_own_y_scale_and_world_signals_without_estimate(tmp_path, drawn):
+    exp, _ = load_experiment(write_tiny(tmp_path))
+    spec = exp.figures[0].model_copy(update={"signals": ["u", "tau_yaw"], "error": False, "t_range": (2.0, 3.0),
+                                             "ylim_after": 2.5, "variants": ["proposed_d1.2"], "title": "zoom"})
+    t, truth, est = traces(["u", "tau_yaw"])
+    del est["tau_yaw"]  # a control input: recorded in the world, estimated by nobody
+    figures.timeseries(exp, spec, t, truth, est, RUN_VARIANT, RUN_SEED, tmp_path / "z.png")
+    axes = drawn[0].axes
+    assert len(axes) == 2
+    window = (t >= 2.0) & (t <= 3.0)
+    top = lines(axes[0])
+    assert list(top) == ["actual", "proposed_d1.2"]
+    np.testing.assert_array_equal(top["proposed_d1.2"][0], t[window])
+    np.testing.assert_array_equal(top["proposed_d1.2"][1], est["u"][window, 2])
+    world = lines(axes[1])
+    assert list(world) == ["proposed_d1.2"]
+    np.testing.assert_array_equal(world["proposed_d1.2"][1], truth["tau_yaw"][window, 2])
+    late = (t >= 2.5) & window
+    lo, _ = axes[1].get_ylim()
+    assert lo == pytest.approx(truth["tau_yaw"][late, 2].min() - 0.1 * np.ptp(truth["tau_yaw"][late, 2]))
+    assert axes[1].get_ylabel() == "tau_yaw [N m]"
+    assert drawn[0]._suptitle.get_text().startswith("zoom\n(y axes scaled to t ≥ 2.5 s")
+
+
+def test_tracking_columns_reference_error_and_input_yaw_in_degrees(tmp_path, drawn):
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    part = exp.part("S1")
+    spec = next(f for f in part.figures if f.scenario == "S1")
+    names = [v.name for v in part.variants]
+    n_var = len(names)
+    run_variant = np.repeat(np.arange(n_var), 2)[::-1].copy()  # seed 0 of variant v at column 2 * (n - v) - 1
+    run_seed = np.tile([0, 1], n_var)
+    t = np.linspace(0.0, 10.0, 101)
+    rng = np.random.default_rng(3)
+    sig = ["depth", "yaw", "tau_depth", "tau_yaw"]
+    truth = {s: rng.standard_normal((t.size, 2 * n_var)) for s in sig}
+    est = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw"]}  # the references
+    figures.tracking(part, spec, t, truth, est, run_variant, run_seed, tmp_path / "f.png")
+    axes = np.array(drawn[0].axes).reshape(3, 2)
+    labels = [v.label or v.name for v in part.variants]
+    for j, (s, k) in enumerate([("depth", 1.0), ("yaw", 180 / np.pi)]):
+        top, mid, bottom = (lines(a) for a in axes[:, j])
+        assert list(top) == ["desired", *labels]
+        b0 = int(np.flatnonzero((run_variant == 0) & (run_seed == 0))[0])
+        np.testing.assert_allclose(top["desired"][1], k * est[s][:, b0])
+        for v, label in enumerate(labels):
+            b = int(np.flatnonzero((run_variant == v) & (run_seed == 0))[0])
+            np.testing.assert_allclose(top[label][1], k * truth[s][:, b])
+            np.testing.assert_allclose(mid[label][1], k * (est[s][:, b] - truth[s][:, b]))
+            np.testing.assert_array_equal(bottom[label][1], truth[f"tau_{s}"][:, b])
+    assert axes[0, 1].get_ylabel() == "yaw [deg]" and axes[1, 0].get_ylabel() == "error [m]"
+    assert axes[2, 0].get_ylabel() == "tau_depth [N]" and axes[2, 1].get_xlabel() == "time [s]"
+    assert "model leonard_like" in drawn[0]._suptitle.get_text()
