@@ -99,8 +99,7 @@ def test_tracking_columns_reference_error_and_input_yaw_in_degrees(tmp_path, dra
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     part = exp.part("S1")
     spec = next(f for f in part.figures if f.scenario == "S1")
-    names = [v.name for v in part.variants]
-    n_var = len(names)
+    n_var = len(part.variants)
     run_variant = np.repeat(np.arange(n_var), 2)[::-1].copy()  # seed 0 of variant v at column 2 * (n - v) - 1
     run_seed = np.tile([0, 1], n_var)
     t = np.linspace(0.0, 10.0, 101)
@@ -111,13 +110,12 @@ def test_tracking_columns_reference_error_and_input_yaw_in_degrees(tmp_path, dra
     figures.tracking(part, spec, t, truth, est, run_variant, run_seed, tmp_path / "f.png")
     axes = np.array(drawn[0].axes).reshape(3, 2)
     labels = [v.label or v.name for v in part.variants]
+    seed0 = [int(np.flatnonzero((run_variant == v) & (run_seed == 0))[0]) for v in range(n_var)]
     for j, (s, k) in enumerate([("depth", 1.0), ("yaw", 180 / np.pi)]):
         top, mid, bottom = (lines(a) for a in axes[:, j])
         assert list(top) == ["desired", *labels]
-        b0 = int(np.flatnonzero((run_variant == 0) & (run_seed == 0))[0])
-        np.testing.assert_allclose(top["desired"][1], k * est[s][:, b0])
-        for v, label in enumerate(labels):
-            b = int(np.flatnonzero((run_variant == v) & (run_seed == 0))[0])
+        np.testing.assert_allclose(top["desired"][1], k * est[s][:, seed0[0]])
+        for label, b in zip(labels, seed0):
             np.testing.assert_allclose(top[label][1], k * truth[s][:, b])
             np.testing.assert_allclose(mid[label][1], k * (est[s][:, b] - truth[s][:, b]))
             np.testing.assert_array_equal(bottom[label][1], truth[f"tau_{s}"][:, b])
