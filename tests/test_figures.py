@@ -4,6 +4,7 @@ batch), errors are truth minus estimate, axes are scaled to the steady state, la
 import numpy as np
 import pytest
 
+from marinebench.config import IntMetric
 from marinebench.loading import load_experiment
 from marinebench.plotting import figures
 
@@ -39,10 +40,22 @@ def lines(ax):
     return {line.get_label(): (line.get_xdata(), line.get_ydata()) for line in ax.get_lines()}
 
 
+def has_zero_line(ax) -> bool:
+    """Whether ``ax`` carries an unlabelled horizontal line at y = 0 (the error rows' reference)."""
+    return any(line.get_label().startswith("_") and np.all(np.asarray(line.get_ydata()) == 0) for line in ax.get_lines())
+
+
+def share_x(axes) -> bool:
+    """Whether all ``axes`` share one x axis (zooming one zooms them all)."""
+    return all(axes[0].get_shared_x_axes().joined(axes[0], ax) for ax in axes[1:])
+
+
 def test_timeseries_plots_seed0_of_each_variant_its_error_and_scales_to_the_steady_state(tmp_path, drawn):
     exp, _ = load_experiment(write_tiny(tmp_path))
     spec = exp.figures[0].model_copy(update={"signals": ["u", "sigma_v"]})
     t, truth, est = traces(["u", "sigma_v"])
+    assert t[50] == 1.0  # the first metric's t_start, a sample time: the scaled window includes it
+    est["u"][50, 3] = 5.0  # the maximum sits on the window's first sample
     path = tmp_path / "u.png"
     figures.timeseries(exp, spec, t, truth, est, RUN_VARIANT, RUN_SEED, path)
     assert path.stat().st_size > 0 and len(drawn) == 1
@@ -66,6 +79,8 @@ def test_timeseries_plots_seed0_of_each_variant_its_error_and_scales_to_the_stea
         lo, hi = axes[2 * i + 1].get_ylim()
         errors = (truth[sig] - est[sig])[late][:, [3, 2]]
         assert lo == pytest.approx(errors.min() - 0.1 * np.ptp(errors)) and hi == pytest.approx(errors.max() + 0.1 * np.ptp(errors))
+        assert has_zero_line(axes[2 * i + 1]) and not has_zero_line(axes[2 * i])
+    assert share_x(axes) and all(ax.get_legend() is not None for ax in axes[::2])
     assert axes[0].get_ylabel() == "surge u [m/s]" and axes[1].get_ylabel() == "error [m/s]"
     assert axes[2].get_ylabel() == "σ_v [m/s²]" and axes[-1].get_xlabel() == "time [s]"
     assert "t ≥ 1 s" in fig._suptitle.get_text() and "model cybership2" in fig._suptitle.get_text()
@@ -73,10 +88,14 @@ def test_timeseries_plots_seed0_of_each_variant_its_error_and_scales_to_the_stea
 
 def test_timeseries_time_window_own_y_scale_and_world_signals_without_estimate(tmp_path, drawn):
     exp, _ = load_experiment(write_tiny(tmp_path))
-    spec = exp.figures[0].model_copy(update={"signals": ["u", "tau_yaw"], "error": False, "t_range": (2.0, 3.0),
-                                             "ylim_after": 2.5, "variants": ["proposed_d1.2"], "title": "zoom"})
     t, truth, est = traces(["u", "tau_yaw"])
+    after = float(t[125])  # 2.5 s, a sample time: the window includes it
+    truth["tau_yaw"][125, 2] = -3.0  # the minimum sits on the window's first sample
+    spec = exp.figures[0].model_copy(update={"signals": ["u", "tau_yaw"], "error": False, "t_range": (2.0, 3.0),
+                                             "ylim_after": after, "variants": ["proposed_d1.2"], "title": "zoom"})
     del est["tau_yaw"]  # a control input: recorded in the world, estimated by nobody
+    est["u"][130:, 3] = np.nan  # a diverged run of a variant this figure leaves out
+    est["u"][140:, 2] = np.nan  # the drawn run diverges: its finite part still scales the axis
     figures.timeseries(exp, spec, t, truth, est, RUN_VARIANT, RUN_SEED, tmp_path / "z.png")
     axes = drawn[0].axes
     assert len(axes) == 2
@@ -85,40 +104,76 @@ def test_timeseries_time_window_own_y_scale_and_world_signals_without_estimate(t
     assert list(top) == ["actual", "proposed_d1.2"]
     np.testing.assert_array_equal(top["proposed_d1.2"][0], t[window])
     np.testing.assert_array_equal(top["proposed_d1.2"][1], est["u"][window, 2])
+    finite = np.concatenate([truth["u"][(t >= after) & window, 2], est["u"][(t >= after) & (t < t[140]) & window, 2]])
+    lo, hi = axes[0].get_ylim()
+    assert lo == pytest.approx(finite.min() - 0.1 * np.ptp(finite)) and hi == pytest.approx(finite.max() + 0.1 * np.ptp(finite))
     world = lines(axes[1])
     assert list(world) == ["proposed_d1.2"]
     np.testing.assert_array_equal(world["proposed_d1.2"][1], truth["tau_yaw"][window, 2])
-    late = (t >= 2.5) & window
+    late = (t >= after) & window
     lo, _ = axes[1].get_ylim()
-    assert lo == pytest.approx(truth["tau_yaw"][late, 2].min() - 0.1 * np.ptp(truth["tau_yaw"][late, 2]))
+    assert lo < -3.0 and lo == pytest.approx(truth["tau_yaw"][late, 2].min() - 0.1 * np.ptp(truth["tau_yaw"][late, 2]))
     assert axes[1].get_ylabel() == "tau_yaw [N m]"
     assert drawn[0]._suptitle.get_text().startswith("zoom\n(y axes scaled to t ≥ 2.5 s")
+
+
+def test_timeseries_scales_from_zero_when_the_first_metric_has_no_window(tmp_path, drawn):
+    exp, _ = load_experiment(write_tiny(tmp_path))
+    exp = exp.model_copy(update={"metrics": [IntMetric()]})  # INT has no t_start
+    t, truth, est = traces(["u"])
+    figures.timeseries(exp, exp.figures[0].model_copy(update={"signals": ["u"], "error": False}), t, truth, est,
+                       RUN_VARIANT, RUN_SEED, tmp_path / "u.png")
+    _, hi = drawn[0].axes[0].get_ylim()
+    assert hi > 50.0  # the start-up spike is part of the scaled data
+    assert "(y axes scaled to t ≥ 0 s;" in drawn[0]._suptitle.get_text()
+
+
+def tracking_traces(n_var):
+    """Random closed-loop traces with seed 0 of variant v at column 2 * (n - v) - 1 (a reversed batch)."""
+    run_variant = np.repeat(np.arange(n_var), 2)[::-1].copy()
+    run_seed = np.tile([0, 1], n_var)
+    t = np.linspace(0.0, 10.0, 101)
+    rng = np.random.default_rng(3)
+    truth = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw", "tau_depth", "tau_yaw"]}
+    est = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw"]}  # the references
+    return t, truth, est, run_variant, run_seed
 
 
 def test_tracking_columns_reference_error_and_input_yaw_in_degrees(tmp_path, drawn):
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     part = exp.part("S1")
-    spec = next(f for f in part.figures if f.scenario == "S1")
+    spec = next(f for f in part.figures if f.scenario == "S1").model_copy(update={"t_range": (2.0, 5.0), "title": "trk"})
     n_var = len(part.variants)
-    run_variant = np.repeat(np.arange(n_var), 2)[::-1].copy()  # seed 0 of variant v at column 2 * (n - v) - 1
-    run_seed = np.tile([0, 1], n_var)
-    t = np.linspace(0.0, 10.0, 101)
-    rng = np.random.default_rng(3)
-    sig = ["depth", "yaw", "tau_depth", "tau_yaw"]
-    truth = {s: rng.standard_normal((t.size, 2 * n_var)) for s in sig}
-    est = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw"]}  # the references
+    t, truth, est, run_variant, run_seed = tracking_traces(n_var)
     figures.tracking(part, spec, t, truth, est, run_variant, run_seed, tmp_path / "f.png")
     axes = np.array(drawn[0].axes).reshape(3, 2)
     labels = [v.label or v.name for v in part.variants]
     seed0 = [int(np.flatnonzero((run_variant == v) & (run_seed == 0))[0]) for v in range(n_var)]
+    window = slice(20, 51)  # 2.0 s to 5.0 s, both ends included
     for j, (s, k) in enumerate([("depth", 1.0), ("yaw", 180 / np.pi)]):
         top, mid, bottom = (lines(a) for a in axes[:, j])
         assert list(top) == ["desired", *labels]
-        np.testing.assert_allclose(top["desired"][1], k * est[s][:, seed0[0]])
+        np.testing.assert_array_equal(top["desired"][0], t[window])
+        np.testing.assert_allclose(top["desired"][1], k * est[s][window, seed0[0]])
         for label, b in zip(labels, seed0):
-            np.testing.assert_allclose(top[label][1], k * truth[s][:, b])
-            np.testing.assert_allclose(mid[label][1], k * (est[s][:, b] - truth[s][:, b]))
-            np.testing.assert_array_equal(bottom[label][1], truth[f"tau_{s}"][:, b])
+            np.testing.assert_allclose(top[label][1], k * truth[s][window, b])
+            np.testing.assert_allclose(mid[label][1], k * (est[s][window, b] - truth[s][window, b]))
+            np.testing.assert_array_equal(bottom[label][1], truth[f"tau_{s}"][window, b])
+        assert has_zero_line(axes[1, j]) and not has_zero_line(axes[0, j])
+    assert share_x(axes.ravel()) and all(ax.get_legend() is not None for ax in axes.ravel())
+    assert (tmp_path / "f.png").stat().st_size > 0
     assert axes[0, 1].get_ylabel() == "yaw [deg]" and axes[1, 0].get_ylabel() == "error [m]"
     assert axes[2, 0].get_ylabel() == "tau_depth [N]" and axes[2, 1].get_xlabel() == "time [s]"
-    assert "model leonard_like" in drawn[0]._suptitle.get_text()
+    title = drawn[0]._suptitle.get_text()
+    assert title.startswith("trk (seed 0, model leonard_like")
+
+
+def test_tracking_of_one_dof_is_one_column(tmp_path, drawn):
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    part = exp.part("S1")
+    spec = next(f for f in part.figures if f.scenario == "S1").model_copy(update={"signals": ["depth"], "title": None})
+    t, truth, est, run_variant, run_seed = tracking_traces(len(part.variants))
+    figures.tracking(part, spec, t, truth, est, run_variant, run_seed, tmp_path / "d.png")
+    axes = drawn[0].axes
+    assert len(axes) == 3 and [ax.get_ylabel() for ax in axes] == ["depth [m]", "error [m]", "tau_depth [N]"]
+    assert drawn[0]._suptitle.get_text().startswith(f"{spec.file} (seed 0")
