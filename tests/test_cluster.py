@@ -23,12 +23,14 @@ def test_dask_chunks_give_the_in_process_numbers_and_resume(tmp_path):
 
     base, _ = load_experiment(CFG)
     exp = sweep_experiment(base, ["k"], None, 3, 15.0, CFG)  # 6 runs, 3 chunks of 2
-    local, _, ran_local = run_chunked(exp, tmp_path / "local", chunk_size=2)
+    here, there = [], []
+    local, _, ran_local = run_chunked(exp, tmp_path / "local", chunk_size=2, progress=here.append)
     target = tmp_path / "dask"
     partial = tmp_path / ".dask.partial"
     with Client(processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None) as client:
-        first, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
+        first, _, ran = run_chunked(exp, target, chunk_size=2, progress=there.append, pool=DaskPool(client))
         assert ran == ran_local == 3 and _values(first) == _values(local)
+        assert sum(there) == sum(here) == 3 * 300 and there.count(300) == 3  # the bar moves as each chunk comes back
         (partial / "chunk-0001.csv").unlink()  # as if the sweep had been interrupted before this chunk came back
         resumed, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
     assert ran == 1 and _values(resumed) == _values(local)
@@ -88,6 +90,31 @@ class FakeClient:
     def run(self, function, *args, on_error="raise"):
         assert on_error == "return"
         return self.answers[function.__name__]
+
+
+def test_a_local_cluster_checks_its_workers_and_is_shut_down_with_the_pool(monkeypatch):
+    import os
+
+    import distributed
+
+    from marinebench.experiments import cluster
+
+    closed = []
+
+    class Recorded(distributed.LocalCluster):
+        def close(self, *args, **kwargs):
+            closed.append(True)
+            return super().close(*args, **kwargs)
+
+    monkeypatch.setattr(distributed, "LocalCluster", Recorded)
+    with dask_pool("local", workers=1) as pool:
+        assert pool.describe() == "dask local cluster, 1 worker process(es)"
+    assert closed == [True]
+    # a digest that differs between processes (each worker's pid) stands for workers running another source
+    monkeypatch.setattr(cluster, "package_digest", os.getpid)
+    with pytest.raises(ClusterError, match="run another marinebench source"), dask_pool("local", workers=1):
+        pass
+    assert closed == [True, True]
 
 
 def test_workers_must_run_this_marinebench():

@@ -55,6 +55,13 @@ def test_stiff_gains_refused_with_clear_message(tiny_config):
         run(exp)
 
 
+def test_progress_hears_of_every_step_and_on_start_of_their_total(tiny_config):
+    exp, _ = load_experiment(tiny_config, ["scenario.horizon=12.5"])  # 1250 steps: a block of 1000 and the rest
+    steps, totals = [], []
+    run(exp, progress=steps.append, on_start=totals.append, traces=False)
+    assert steps == [1000, 250] and totals == [1250]
+
+
 def test_same_seed_same_numbers_and_batch_independence(tiny_config):
     a = values(short(tiny_config))
     b = values(short(tiny_config))

@@ -35,7 +35,7 @@ def test_worker_processes_give_the_in_process_numbers_report_progress_and_resume
         assert pool.describe() == "2 local worker process(es)"
         first, summed, ran = run_chunked(exp, target, chunk_size=1, progress=steps.append, pool=pool)
         assert ran == 3 and summed > 0 and _values(first) == _values(local)
-        assert sum(steps) == 3 * 1000  # each worker's engine reports every 1000 steps, through the shared counter
+        assert sum(steps) == 3 * 1200  # each worker's engine reports its steps through the shared counter
         (partial / "chunk-0002.csv").unlink()  # as if the sweep had been interrupted before this chunk came back
         resumed, _, ran = run_chunked(exp, target, chunk_size=1, pool=pool)
     assert ran == 1 and _values(resumed) == _values(local)
@@ -127,3 +127,42 @@ def test_workers_end_when_the_process_that_made_the_pool_is_killed(tmp_path):
     for pid in left:  # do not leave them behind on a failure
         subprocess.run(["kill", "-9", str(pid)], check=False)
     assert not left, "orphaned workers still running after their parent was killed"
+
+
+def _worker_setup() -> tuple:
+    import signal
+
+    from threadpoolctl import threadpool_info
+
+    return (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM),
+            max((lib["num_threads"] for lib in threadpool_info()), default=1))
+
+
+def test_workers_are_forked_ignore_ctrl_c_end_on_sigterm_and_run_one_blas_thread():
+    import signal
+
+    handler = signal.signal(signal.SIGTERM, lambda *_: None)  # as the CLI's handler, which a fork inherits
+    try:
+        with local_pool(1) as pool:
+            assert pool.pool._mp_context.get_start_method() == "fork"  # shares this process's imported modules
+            sigint, sigterm, blas_threads = pool.pool.submit(_worker_setup).result()
+    finally:
+        signal.signal(signal.SIGTERM, handler)
+    assert sigint == signal.SIG_IGN  # Ctrl-C reaches the process group; the parent stops the workers
+    assert sigterm == signal.SIG_DFL  # so the parent's terminate() ends them, not the inherited handler
+    assert blas_threads == 1
+
+
+def _mark(folder: Path, i: int, progress) -> int:
+    (folder / f"{i}.done").touch()
+    time.sleep(0.3)
+    return i
+
+
+def test_closing_the_pool_cancels_the_chunks_nobody_waits_for(tmp_path):
+    with local_pool(1) as pool:
+        for _ in pool.results(_mark, {i: (tmp_path, i) for i in range(10)}):
+            break  # the consumer stops after the first chunk
+    # the finished one, the one running and the two in the worker's call queue (workers + 1 deep; handed over,
+    # so no longer cancellable), not the other six
+    assert len(list(tmp_path.glob("*.done"))) <= 4

@@ -85,6 +85,7 @@ def simulate(
     """Integrate plant and observers for ``n_steps`` steps; returns the per-run ``diverged`` mask.
 
     Recorders are updated at every step ``k = 0..n_steps`` with the truth and the gathered estimates.
+    ``progress`` hears of every ``progress_every`` steps done and of the remainder at the end, ``n_steps`` in all.
     """
     B = world.x0.shape[0]
     continuous = [g for g in groups if not getattr(g.observer, "discrete", False)]
@@ -120,8 +121,8 @@ def simulate(
                 y, tau = sampled(t, state[0])
                 new += [g.observer.step(xh, y[g.index], tau[g.index], k) for g, xh in zip(discrete, state[nc + 1 :])]
             state = new
-            if progress is not None and (k + 1) % progress_every == 0:
-                progress(progress_every)
+            if progress is not None and ((k + 1) % progress_every == 0 or k + 1 == n_steps):
+                progress((k + 1) % progress_every or progress_every)  # a block, or the rest at the end
     diverged = ~np.isfinite(state[0]).all(axis=1)
     for g, xh in zip(groups, state[1:]):
         diverged[g.index] |= ~np.isfinite(xh).all(axis=1)
