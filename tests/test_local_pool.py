@@ -141,13 +141,17 @@ def _worker_setup() -> tuple:
 def test_workers_are_forked_ignore_ctrl_c_end_on_sigterm_and_run_one_blas_thread():
     import signal
 
-    handler = signal.signal(signal.SIGTERM, lambda *_: None)  # as the CLI's handler, which a fork inherits
+    # as in the CLI, which a fork inherits: its SIGTERM handler, and Ctrl-C raising KeyboardInterrupt (a test
+    # runner's worker may ignore SIGINT)
+    term = signal.signal(signal.SIGTERM, lambda *_: None)
+    interrupt = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         with local_pool(1) as pool:
             assert pool.pool._mp_context.get_start_method() == "fork"  # shares this process's imported modules
             sigint, sigterm, blas_threads = pool.pool.submit(_worker_setup).result()
     finally:
-        signal.signal(signal.SIGTERM, handler)
+        signal.signal(signal.SIGTERM, term)
+        signal.signal(signal.SIGINT, interrupt)
     assert sigint == signal.SIG_IGN  # Ctrl-C reaches the process group; the parent stops the workers
     assert sigterm == signal.SIG_DFL  # so the parent's terminate() ends them, not the inherited handler
     assert blas_threads == 1
