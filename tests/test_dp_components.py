@@ -140,6 +140,28 @@ def test_jump_rule_and_condition_check():
     assert list(jumped) == [False, True] and np.array_equal(zp[0], z1[0]) and not np.array_equal(zp[1], z1[0])
 
 
+def test_jump_rule_boundaries_and_an_exactly_singular_window():
+    """|y - C z1|_i >= eps_i and cond <= c_max both hold at equality; with the check off, a window whose
+    I - Phi2 Phi1^-1 is exactly singular does not jump (no z* exists) while the others in the batch do."""
+    n = 9
+    rng = np.random.default_rng(5)
+    phi1, phi2 = np.eye(n)[None] * 0.5, np.eye(n)[None] * 0.1  # X = 0.8 I: cond 1 exactly
+    z1, z2 = rng.normal(size=(1, n)), rng.normal(size=(1, n))
+    ones, k = np.ones(n), np.array([1.0])
+    eps = np.array([[0.5, 0.5, 0.05]])
+    at_bound = np.array([[0.0, 0.5, 0.0]])
+    zp, jumped, cond = fto_jump(z1, z2, phi1, phi2, at_bound, k, eps, 1.0, ones)
+    assert cond[0] == 1.0 and jumped[0] and np.allclose(zp, (z2 - 0.2 * z1) / 0.8)
+    singular = phi2.copy()
+    singular[0, 0, 0] = 0.5  # Phi2 = Phi1 in the first state: X[0, 0] = 0
+    two = lambda a: np.concatenate([a, a])
+    zp, jumped, cond = fto_jump(two(z1), two(z2), two(phi1), np.concatenate([singular, phi2]), two(at_bound),
+                                two(k), two(eps), 1.0, ones, check=False)
+    assert list(jumped) == [False, True] and cond[0] > 1e15
+    np.testing.assert_array_equal(zp[0], z1[0])
+    assert np.allclose(zp[1], (z2[0] - 0.2 * z1[0]) / 0.8)
+
+
 @pytest.mark.parametrize("dt", [0.05, 0.01])
 def test_rk4_maps_match_taylor(dt):
     A = np.array([[[-1.0, 2.0], [0.0, -3.0]]])
