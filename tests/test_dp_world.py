@@ -215,6 +215,7 @@ def test_bis_scaled_condition_number_and_check():
     assert m["resetting", "cond_max"] > 1e10 and m["resetting", "n_jumps"] == 0  # c_max = 1e10 blocks every jump
     m = short("scenario.horizon=60")
     assert m["resetting", "log10_cond_mean"] < 10  # delta = 2.5 s: well conditioned in bis units
+    assert m["resetting", "n_resets"] > 1 and m["resetting", "log10_cond_mean"] <= np.log10(m["resetting", "cond_max"])
     # the NPO runs one gain (Phi2 = Phi1): its cond(I - Phi2 Phi1^-1) is a ratio of rounding errors, not reported
     assert ("npo", "n_resets") in m.index and ("npo", "cond_max") not in m.index and ("npo", "log10_cond_mean") not in m.index
 
@@ -349,3 +350,29 @@ def test_error_metrics_and_tables_default_to_the_scenario_kinds_signals(tmp_path
     if scenario.startswith("dp"):
         path.write_text(yaml.safe_dump({**doc, "table": {"title": "t", "metrics": ["J_tot"]}}))
         assert load_experiment(path)[0].table.signals == ["z"]
+
+
+def test_one_step_is_each_runs_own_exact_map_in_a_batch_of_two_design_classes():
+    """The fitted harmonic maps of z+ = P z + G_y y + G_u u equal the maps formed directly from A_i(psi) and
+    L_i(psi) at any heading, each run with its own design class's (here two Q1s in one batch), inputs included."""
+    from marinebench.dp_scenario import DpScenario
+    from marinebench.experiments.runner import make_observer, plant_of
+    from marinebench.observers.dp import ResettingTuning
+
+    sc = DpScenario(name="m", horizon=10, waves=None)
+    tunings = [ResettingTuning(), ResettingTuning(q=(500.0, 500.0, 100.0)), ResettingTuning()]
+    obs = make_observer("resetting_fto", tunings, sc, plant_of(sc))
+    assert list(obs.class_of) == [0, 1, 0]
+    rng = np.random.default_rng(11)
+    state = obs.init().reshape(3, 2, 9, 10)
+    scale = np.array([5, 5, 0.3, 1e5, 1e5, 1e6, 1, 1, 0.05])  # typical magnitudes [m, rad, N, N m, m/s, rad/s]
+    state[..., 9] = rng.normal(size=(3, 2, 9)) * scale
+    y = np.array([[3.0, -2.0, 2.9], [1.0, 4.0, -1.7], [-2.0, 0.5, 0.4]])  # headings far from the design's 0
+    tau = np.array([[2e5, -1e5, 3e6], [-4e5, 2e5, -1e6], [1e5, 3e5, 2e6]])
+    out = obs.step(state.reshape(3, -1).copy(), y, tau, 0).reshape(3, 2, 9, 10)
+    for b, cls in enumerate(obs.class_of):
+        P, Gy, Gu = obs.exact_maps(y[b : b + 1, 2], obs.classes[cls]["K"])
+        z = P[0] @ state[b, :, :, 9, None] + Gy[0] @ y[b, :, None] + Gu[0] @ tau[b, :, None]
+        np.testing.assert_allclose(out[b, :, :, 9] / scale, z[..., 0] / scale, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(out[b, :, :, :9], P[0], rtol=1e-12, atol=1e-12)  # Phi_i advanced from I
+    assert not np.allclose(out[0, :, :, :9], out[1, :, :, :9])  # the two classes' maps differ
