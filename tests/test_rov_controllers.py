@@ -63,6 +63,26 @@ def test_srise_integral_terms_follow_eqs_16_17():
     assert tau == pytest.approx((K + 1) * e2 + h * (phi + phi_star), rel=1e-12)  # e2(t0) = 0
 
 
+def test_rise_law_written_out_for_three_periods():
+    """baselines.md 5.1: mu = (ks + 1)(e2 - e2(t0)) + nu, nu' = (ks + 1) alpha2 e2 + beta sgn(e2) (sgn(0) = 0),
+    e2 = e1' + alpha1 e1; nu integrated over each period h from its start (explicit Euler). Two DOFs with
+    their own gains."""
+    gains = [RiseGains(alpha1=2.0, ks=10.0, alpha2=0.5, beta=0.3), RiseGains(alpha1=1.0, ks=4.0, alpha2=2.0, beta=0.7)]
+    c, h = Rise(gains, batch=1), 0.04
+    e1s = [np.array([[0.1, -0.2]]), np.array([[-0.3, 0.4]]), np.array([[0.0, 0.0]])]
+    e1_dots = [np.array([[0.2, 0.1]]), np.array([[0.1, -0.1]]), np.array([[0.0, 0.0]])]
+    taus = [c.command(e1, e1_dot, h)[0] for e1, e1_dot in zip(e1s, e1_dots)]
+    for j, g in enumerate(gains):
+        e2 = [e1_dot[0, j] + g.alpha1 * e1[0, j] for e1, e1_dot in zip(e1s, e1_dots)]
+        nu = [0.0]
+        for e in e2:
+            nu.append(nu[-1] + h * ((g.ks + 1) * g.alpha2 * e + g.beta * np.sign(e)))
+        expected = [(g.ks + 1) * (e - e2[0]) + n for e, n in zip(e2, nu)]
+        np.testing.assert_allclose([tau[j] for tau in taus], expected, rtol=1e-12, atol=1e-15)
+        assert taus[0][j] == 0.0  # mu(t0) = 0
+        assert c.nu[0, j] == pytest.approx(nu[2], rel=1e-12)  # the last period, at e2 = 0, added nothing
+
+
 @given(st.floats(-500, 500), st.floats(-200, 200))
 def test_allocation_respects_thruster_limits(tz, tp):
     f, achieved = ROV.allocate(np.array([[tz, tp]]))
