@@ -112,6 +112,11 @@ def test_fto_recovers_true_state_of_noiseless_lti_after_one_window():
     np.testing.assert_allclose(zp[0] / s, z / s, atol=1e-7)
 
 
+def twice(a: np.ndarray) -> np.ndarray:
+    """A batch of two runs from one (the same window end, for per-run settings)."""
+    return np.concatenate([a, a])
+
+
 def test_jump_rule_and_condition_check():
     n = 9
     rng = np.random.default_rng(2)
@@ -134,8 +139,7 @@ def test_jump_rule_and_condition_check():
     _, jumped_unchecked, _ = fto_jump(z1, z2, phi1, phi2_bad, big, k, eps, 1e10, ones, check=False)
     assert jumped_unchecked[0]
     # per-run c_max and check (a sweep's runs differ): the same window end, refused only where checked
-    two = lambda a: np.concatenate([a, a])
-    zp, jumped, _ = fto_jump(two(z1), two(z2), two(phi1), two(phi2_bad), two(big), two(k), two(eps),
+    zp, jumped, _ = fto_jump(twice(z1), twice(z2), twice(phi1), twice(phi2_bad), twice(big), twice(k), twice(eps),
                              np.array([1e10, 1e10]), ones, check=np.array([True, False]))
     assert list(jumped) == [False, True] and np.array_equal(zp[0], z1[0]) and not np.array_equal(zp[1], z1[0])
 
@@ -154,9 +158,8 @@ def test_jump_rule_boundaries_and_an_exactly_singular_window():
     assert cond[0] == 1.0 and jumped[0] and np.allclose(zp, (z2 - 0.2 * z1) / 0.8)
     singular = phi2.copy()
     singular[0, 0, 0] = 0.5  # Phi2 = Phi1 in the first state: X[0, 0] = 0
-    two = lambda a: np.concatenate([a, a])
-    zp, jumped, cond = fto_jump(two(z1), two(z2), two(phi1), np.concatenate([singular, phi2]), two(at_bound),
-                                two(k), two(eps), 1.0, ones, check=False)
+    zp, jumped, cond = fto_jump(twice(z1), twice(z2), twice(phi1), np.concatenate([singular, phi2]), twice(at_bound),
+                                twice(k), twice(eps), 1.0, ones, check=False)
     assert list(jumped) == [False, True] and cond[0] > 1e15
     np.testing.assert_array_equal(zp[0], z1[0])
     assert np.allclose(zp[1], (z2[0] - 0.2 * z1[0]) / 0.8)

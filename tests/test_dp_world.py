@@ -8,8 +8,9 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.dp_scenario import DpScenario, DpWorld
-from marinebench.experiments.runner import run
+from marinebench.experiments.runner import make_observer, plant_of, run
 from marinebench.loading import load_experiment
+from marinebench.observers.dp import ResettingTuning
 from marinebench.sim.recorders import NormIntegral
 
 from .conftest import ROOT
@@ -355,10 +356,6 @@ def test_error_metrics_and_tables_default_to_the_scenario_kinds_signals(tmp_path
 def test_one_step_is_each_runs_own_exact_map_in_a_batch_of_two_design_classes():
     """The fitted harmonic maps of z+ = P z + G_y y + G_u u equal the maps formed directly from A_i(psi) and
     L_i(psi) at any heading, each run with its own design class's (here two Q1s in one batch), inputs included."""
-    from marinebench.dp_scenario import DpScenario
-    from marinebench.experiments.runner import make_observer, plant_of
-    from marinebench.observers.dp import ResettingTuning
-
     sc = DpScenario(name="m", horizon=10, waves=None)
     tunings = [ResettingTuning(), ResettingTuning(q=(500.0, 500.0, 100.0)), ResettingTuning()]
     obs = make_observer("resetting_fto", tunings, sc, plant_of(sc))

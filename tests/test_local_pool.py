@@ -2,6 +2,7 @@
 batches run, resumable after a failed batch, and clear refusals."""
 
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -86,9 +87,6 @@ def test_jobs_with_dask_is_refused_in_one_line(tmp_path):
 
 
 def test_ctrl_c_stops_the_running_batches_instead_of_waiting_for_them():
-    import signal
-    import time
-
     with pytest.raises(KeyboardInterrupt), local_pool(1) as pool:
         workers = list(pool.pool._processes.values())
         pool.pool.submit(time.sleep, 30)  # a batch that would keep the shutdown waiting for 30 s, then exit 0
@@ -130,8 +128,6 @@ def test_workers_end_when_the_process_that_made_the_pool_is_killed(tmp_path):
 
 
 def _worker_setup() -> tuple:
-    import signal
-
     from threadpoolctl import threadpool_info
 
     return (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM),
@@ -139,8 +135,6 @@ def _worker_setup() -> tuple:
 
 
 def test_workers_are_forked_ignore_ctrl_c_end_on_sigterm_and_run_one_blas_thread():
-    import signal
-
     # as in the CLI, which a fork inherits: its SIGTERM handler, and Ctrl-C raising KeyboardInterrupt (a test
     # runner's worker may ignore SIGINT)
     term = signal.signal(signal.SIGTERM, lambda *_: None)
