@@ -122,3 +122,49 @@ def test_verify_reports_poles_outside_the_requested_region():
     assert "slowest pole" in too_slow
     (too_fast,) = verify(sol, 1.2, 0.95 * fastest)
     assert "fastest pole" in too_fast
+
+
+def test_tuning_defaults_are_the_papers_noiseless_choices_and_the_documented_deviations():
+    """Sec. V: k_omega = 1, k_n = 0 and r_max = -r_min = 0.8727 rad/s; rho = max(50, 5 delta), mu = 1e-3 and time
+    scaling from delta = 50 are this package's documented deviations (README, manifest)."""
+    t = BejaranoTuning()
+    assert (t.delta_psi1, t.delta_p1, t.k_omega, t.k_n, t.r_max) == (0.05, 0.05, 1.0, 0.0, 0.8727)
+    assert (t.rho, t.scale_above, t.trace_weight) == (None, 50.0, 1e-3)
+    assert [t.rho_for(d) for d in (0.05, 10.0, 20.0, 300.0)] == [50.0, 50.0, 100.0, 1500.0]
+    assert BejaranoTuning(rho=7.0).rho_for(300.0) == 7.0
+
+
+@pytest.mark.parametrize("key,ok,bad", [
+    ("delta_psi1", 0.0, -0.01), ("delta_p1", 0.0, -0.01), ("k_omega", 0.0, -0.01), ("k_n", 0.0, -0.01),
+    ("r_max", 0.01, 0.0), ("rho", 0.5, 0.0), ("scale_above", 0.01, 0.0), ("trace_weight", 0.0, -1e-6),
+])
+def test_tuning_bounds(key, ok, bad):
+    """delta = 0 (Fig. 7) and k = 0 are tunings; a yaw-rate bound, disk radius or scaling threshold must be > 0."""
+    lows = {"delta_psi1": 0.0, "delta_p1": 0.0} if key == "rho" else {}
+    assert getattr(BejaranoTuning(**lows, **{key: ok}), key) == ok
+    with pytest.raises(ValueError, match=key):
+        BejaranoTuning(**lows, **{key: bad})
+
+
+def test_disk_radius_must_exceed_both_decay_rates():
+    for field in ("delta_psi1", "delta_p1"):
+        with pytest.raises(ValueError, match="must exceed delta=2.0"):
+            BejaranoTuning(**{field: 2.0}, rho=2.0)
+    assert BejaranoTuning(delta_psi1=2.0, delta_p1=2.0, rho=2.01).rho == 2.01
+
+
+def test_design_passes_each_tuning_setting_to_its_lmi(monkeypatch):
+    """Every field of the tuning reaches the LMI problem it belongs to, each decay rate with its own disk radius."""
+    from marinebench.observers import bejarano
+
+    calls = {}
+    rot = rotational_design(1.2, 50.0)
+    pos = positional_design(1.2, 1.0, 1.0, -0.8727, 0.8727, 50.0)
+    monkeypatch.setattr(bejarano, "rotational_design", lambda *a: calls.setdefault("rot", a) and rot)
+    monkeypatch.setattr(bejarano, "positional_design", lambda *a: calls.setdefault("pos", a) and pos)
+    monkeypatch.setattr(bejarano, "verify", lambda sol, d, rho: calls.setdefault("verify", []).append((sol, d, rho)))
+    t = BejaranoTuning(delta_psi1=3.0, delta_p1=20.0, k_omega=2.0, k_n=0.5, r_max=0.4, scale_above=10.0, trace_weight=0.01)
+    assert design(t) == (rot, pos)
+    assert calls["rot"] == (3.0, 50.0, 10.0, 0.01)
+    assert calls["pos"] == (20.0, 2.0, 0.5, -0.4, 0.4, 100.0, 10.0, 0.01)
+    assert calls["verify"] == [(rot, 3.0, 50.0), (pos, 20.0, 100.0)]

@@ -39,6 +39,47 @@ def test_observer_outputs_named_signals():
         assert all(v.shape == (1,) for v in out.values())
 
 
+def test_bejarano_derivative_is_eqs_13_14_with_eq_26_per_run():
+    """One evaluation of the right-hand side, written out with matrices for two tunings in one batch: eq. (13)
+    with chi_psi = [psi, r, sigma_r], eq. (14) with chi_p = [x, y, u, v, sigma_u, sigma_v] and the scheduled
+    gain L_p(psi) = -blkdiag(R2, I, I) L_pz R2^T(psi) of eq. (26); headings far from 0, innovations wrapped."""
+    Minv = steady_world().plant.Minv
+    obs = BejaranoObserver([BejaranoTuning(delta_psi1=1.2, delta_p1=1.2, k_n=1), BejaranoTuning(delta_psi1=2.0)], Minv)
+    rng = np.random.default_rng(4)
+    xhat = obs.init() + rng.normal(size=(2, 9))
+    assert xhat.shape == (2, 9)
+    xhat[:, 0] = [3.0, -2.9]  # psi_hat: psi - psi_hat wraps past pi in both runs
+    y = np.column_stack([rng.normal(size=(2, 2)), [-2.9, 3.0]])  # [x, y, psi]
+    tau = rng.normal(size=(2, 3))
+    got = obs.derivative(xhat, y, tau)
+    A_psi = np.array([[0.0, 1, 0], [0, 0, 1], [0, 0, 0]])
+    for b in range(2):
+        psi, acc = y[b, 2], Minv @ tau[b]
+        inn = wrap_angle(np.array(psi - xhat[b, 0]))
+        assert abs(inn) < 1.0
+        rot = A_psi @ xhat[b, :3] + np.array([0, acc[2], 0]) + obs.L_psi[b] * inn
+        c, s = np.cos(psi), np.sin(psi)
+        R2 = np.array([[c, -s], [s, c]])
+        A_p = np.zeros((6, 6)); A_p[0:2, 2:4] = R2; A_p[2:4, 4:6] = np.eye(2)
+        T_inv = np.eye(6); T_inv[0:2, 0:2] = R2
+        L_p = -T_inv @ obs.L_pz[b] @ R2.T
+        pos = A_p @ xhat[b, 3:] + np.r_[0, 0, acc[:2], 0, 0] + L_p @ (y[b, :2] - xhat[b, 3:5])
+        np.testing.assert_allclose(got[b], np.r_[rot, pos], rtol=1e-12, atol=1e-12)
+
+
+def test_bejarano_max_rate_is_its_fastest_pole_of_either_subsystem():
+    """The engine's step-size check sees the fastest pole, whichever subsystem has it (Table III's delta = 300/400)."""
+    Minv = steady_world().plant.Minv
+    fast_p = BejaranoObserver([BejaranoTuning(), BejaranoTuning(delta_p1=400)], Minv)
+    fast_psi = BejaranoObserver([BejaranoTuning(delta_psi1=300)], Minv)
+    assert fast_p.max_rate() == pytest.approx(np.abs(fast_p.designs[1][1].poles).max())
+    assert fast_p.max_rate() > 400
+    A_psi = np.array([[0.0, 1, 0], [0, 0, 1], [0, 0, 0]])
+    rot = fast_psi.designs[0][0]
+    assert fast_psi.max_rate() == pytest.approx(np.abs(np.linalg.eigvals(A_psi - np.outer(rot.gain[:, 0], [1, 0, 0]))).max())
+    assert fast_psi.max_rate() > 300
+
+
 def test_liu_tunings_of_different_modes_share_a_batch():
     """Linear and fal Liu ESOs (with different alpha) in one batch: each run's derivative is its own."""
     tunings = [LiuEsoTuning(eps=0.1), LiuEsoTuning(eps=0.2, mode="fal"), LiuEsoTuning(eps=0.1, mode="fal", alpha=0.8)]
