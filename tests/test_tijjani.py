@@ -445,3 +445,43 @@ def test_every_output_names_the_leonard_like_model(tmp_path, monkeypatch):
             assert "Simulated on the model `leonard_like`." in md.read_text(), md
     assert len(list(tmp_path.rglob("claims.md"))) >= 2  # the two runs' (the configs' sweeps may have no claims)
     assert all("model leonard_like" in t for t in titles), titles
+
+
+def test_cdo_and_eo_defaults_are_table_ii_and_the_documented_choices():
+    """theta = 24.39 and K_w = 0.1 are Table II's; K* from LMI (40) at mu = 0.35 and the EO at eps = 1/theta with
+    binomial a = (3, 3, 1) are this package's documented choices (baselines.md 9.4, README)."""
+    from marinebench.observers.cdo import CdoParams, EoParams
+
+    cdo, eo = CdoParams(), EoParams()
+    assert (cdo.theta, cdo.k_w, cdo.k_star, cdo.lmi_decay) == (24.39, 0.1, "lmi", 0.35)
+    assert (eo.eps, eo.a) == (0.041, (3.0, 3.0, 1.0))
+    assert eo.eps == pytest.approx(1 / cdo.theta, rel=2e-3)
+    assert cdo.gain() == design_lmi(0.35).k_star
+    with pytest.raises(ValueError, match="theta"):
+        CdoParams(theta=0.0)
+    assert CdoParams(theta=0.5).theta == 0.5  # a slow observer is a tuning, not an error
+    for params, key in ((CdoParams, "thetaa"), (EoParams, "epsilon")):  # a scenario's cdo:/eo: blocks are strict
+        with pytest.raises(ValueError, match=key):
+            params(**{key: 1.0})
+
+
+@pytest.mark.parametrize("k_star", ["binomial", (1.0, 2.0, 0.5)])
+def test_cdo_injection_is_delta_theta_times_k_star(k_star):
+    """Delta_theta K* = diag(theta, theta^2, theta^3) K* (eq. 38); the EO's gain is [a1/eps, a2/eps^2, a3/eps^3]."""
+    from marinebench.observers.cdo import CdoParams, EoParams
+
+    cdo = CdoParams(theta=2.0, k_star=k_star)
+    k = np.array(BINOMIAL if k_star == "binomial" else k_star)
+    assert cdo.gain() == tuple(k)
+    np.testing.assert_allclose(cdo.injection(), [2 * k[0], 4 * k[1], 8 * k[2]], rtol=1e-15)
+    np.testing.assert_allclose(EoParams(eps=0.5, a=(1.0, 2.0, 3.0)).gain(), [2.0, 8.0, 24.0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("settings,key", [({"cdo": {"thetaa": 30.0}}, "thetaa"), ({"eo": {"epsilon": 0.1}}, "epsilon"),
+                                          ({"cdo": {"theta": -1.0}}, "theta"), ({"k_w": 0.2}, "k_w")])
+def test_a_variants_observer_settings_are_checked_not_ignored(settings, key):
+    """A misspelt or out-of-range CDO/EO setting, or one outside its block, is refused where the variant is read."""
+    from marinebench.observers.cdo import RovObserverSpec
+
+    with pytest.raises(ValueError, match=key):
+        RovObserverSpec(kind="cdo", **settings)
