@@ -8,7 +8,7 @@ from marinebench.design.lmi import A_PSI, C_PSI
 from marinebench.experiments.runner import noise_parts
 from marinebench.observers.base import chain_response, wrap_angle
 from marinebench.observers.bejarano import BejaranoObserver, BejaranoTuning
-from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
+from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning, fal
 from marinebench.scenario import OpenLoopASV, Scenario, stream_rngs
 from marinebench.sensors.noise import BandLimitedUniform
 from marinebench.sim.engine import ObserverGroup, simulate
@@ -110,6 +110,75 @@ def test_liu_fal_corrections_are_homogeneous_of_degrees_alpha_2alpha_minus_1_3al
     small, large = corrections(0.5), corrections(5.0)
     assert np.all(small > 0)
     np.testing.assert_allclose(np.log10(large / small), [alpha, 2 * alpha - 1, 3 * alpha - 2], rtol=1e-12)
+
+
+def test_liu_linear_derivative_is_the_eps_scaled_eso_written_out():
+    """baselines.md s.1.2, linear mode, for two tunings in one batch: eta_hat' = R(psi) nu_hat - k1/eps eta_tilde,
+    nu_hat' = M^-1 tau + sigma_hat - k2/eps^2 R^T(psi) eta_tilde, sigma_hat' = -k3/eps^3 R^T(psi) eta_tilde, with
+    eta_tilde = eta_hat - y and its heading wrapped (headings near +-pi)."""
+    Minv = steady_world().plant.Minv
+    tunings = [LiuEsoTuning(eps=0.2), LiuEsoTuning(eps=0.5, k=(4.0, 5.0, 2.0))]
+    obs = LiuEsoObserver(tunings, Minv)
+    rng = np.random.default_rng(5)
+    xhat, tau = rng.normal(size=(2, 9)), rng.normal(size=(2, 3))
+    xhat[:, 2] = [3.0, -2.9]
+    y = np.column_stack([rng.normal(size=(2, 2)), [-2.9, 3.0]])
+    got = obs.derivative(xhat, y, tau)
+    for b, t in enumerate(tunings):
+        c, s = np.cos(y[b, 2]), np.sin(y[b, 2])
+        R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+        e = xhat[b, :3] - y[b]
+        e[2] = wrap_angle(np.array(e[2]))
+        assert abs(e[2]) < 1.0
+        k1, k2, k3 = t.k
+        want = np.r_[R @ xhat[b, 3:6] - k1 / t.eps * e,
+                     Minv @ tau[b] + xhat[b, 6:9] - k2 / t.eps**2 * R.T @ e,
+                     -k3 / t.eps**3 * R.T @ e]
+        np.testing.assert_allclose(got[b], want, rtol=1e-12, atol=1e-12)
+
+
+def test_liu_fal_with_alpha_one_is_the_linear_mode():
+    """baselines.md s.1.2: with alpha = 1 the homogeneous form reduces exactly to the linear mode (eps k1 e/eps^2 =
+    k1 e/eps, ...), inside and outside fal's linear zone."""
+    Minv = steady_world().plant.Minv
+    rng = np.random.default_rng(6)
+    xhat, y, tau = rng.normal(size=(2, 9)), rng.normal(size=(2, 3)), rng.normal(size=(2, 3))
+    xhat[0, :3] = y[0] + 1e-5  # scaled error 1e-5/eps^2 = 2.5e-4 inside |e_s| <= fal_d = 0.01
+    linear = LiuEsoObserver([LiuEsoTuning(eps=0.2)] * 2, Minv).derivative(xhat, y, tau)
+    fal1 = LiuEsoObserver([LiuEsoTuning(eps=0.2, mode="fal", alpha=1.0)] * 2, Minv).derivative(xhat, y, tau)
+    np.testing.assert_allclose(fal1, linear, rtol=1e-12, atol=1e-12)
+
+
+def test_fal_is_linear_with_slope_d_to_alpha_minus_one_inside_its_zone_and_continuous_at_its_edge():
+    alpha, d = 0.8, 0.01
+    x = np.array([0.004, -0.009, 0.0])
+    np.testing.assert_allclose(fal(x, alpha, d), x * d ** (alpha - 1), rtol=1e-14)
+    edge = np.array([d, -d])
+    np.testing.assert_allclose(fal(edge * (1 + 1e-12), alpha, d), np.sign(edge) * d**alpha, rtol=1e-10)
+    np.testing.assert_allclose(fal(edge * (1 - 1e-12), alpha, d), np.sign(edge) * d**alpha, rtol=1e-10)
+    np.testing.assert_allclose(fal(np.array([-0.5]), alpha, d), [-(0.5**alpha)], rtol=1e-14)
+
+
+def test_liu_max_rate_is_the_fastest_pole_over_the_batch():
+    """The poles of s^3 + k1/eps s^2 + k2/eps^2 s + k3/eps^3 are the roots of k's polynomial over eps: a triple
+    pole at -1/eps for k = (3, 3, 1) (Table III's eps = 0.006 gives 167 1/s), -1, -2, -3 over eps for (6, 11, 6)."""
+    Minv = steady_world().plant.Minv
+    triple = LiuEsoObserver([LiuEsoTuning(eps=0.1), LiuEsoTuning(eps=0.006)], Minv)
+    assert triple.max_rate() == pytest.approx(1 / 0.006, rel=1e-4)
+    distinct = LiuEsoObserver([LiuEsoTuning(eps=0.5, k=(6.0, 11.0, 6.0)), LiuEsoTuning(eps=1.0)], Minv)
+    assert distinct.max_rate() == pytest.approx(3 / 0.5, rel=1e-9)
+
+
+def test_liu_tuning_defaults_and_bounds():
+    """baselines.md s.1.2: eps = 0.1 (Table III's slower row), k = (3, 3, 1), linear mode, alpha = 0.95 in
+    (2/3, 1], fal's linear zone d = 0.01; eps and d positive; unknown keys refused."""
+    t = LiuEsoTuning()
+    assert (t.eps, t.k, t.mode, t.alpha, t.fal_d) == (0.1, (3.0, 3.0, 1.0), "linear", 0.95, 0.01)
+    LiuEsoTuning(alpha=1.0)
+    LiuEsoTuning(alpha=0.67)
+    for bad in ({"eps": 0.0}, {"alpha": 2 / 3}, {"alpha": 1.01}, {"fal_d": 0.0}, {"epsilon": 0.1}):
+        with pytest.raises(ValueError):
+            LiuEsoTuning(**bad)
 
 
 def test_wrap_angle():
