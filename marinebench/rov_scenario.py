@@ -75,10 +75,13 @@ class RovSensors(BaseModel):
     depth_period: float = Field(0.05, gt=0, description="[s] pressure sensor (Tijjani Table I)")
     attitude_period: float = Field(0.04, gt=0, description="[s] IMU (Tijjani Table I)")
     depth_noise: float = Field(
-        0.001, ge=0, description="[m] white noise std of the depth samples (assumed: about 4x the MS5803-02BA's "
-        "resolution; the depth ordering of Table III holds up to about 2 mm, docs/tijjani.md)",
+        0.00024, ge=0, description="[m] white noise std of the depth samples (assumed: the MS5803-02BA's stated "
+        "resolution, about 2.4 Pa; docs/tijjani.md, Noise)",
     )
-    yaw_noise_deg: float = Field(0.1, ge=0, description="[deg] white noise std of the yaw samples (assumed)")
+    yaw_noise_deg: float = Field(
+        0.01, ge=0, description="[deg] white noise std of the yaw samples (calibrated: with it the S1 yaw INT of the "
+        "three controllers is the size of Table III's; docs/tijjani.md, Noise)",
+    )
     depth_rate: Literal["difference", "true"] = Field(
         "difference", description="heave rate fed to measurement-fed controllers: 'difference' of the last two depth "
         "samples (a pressure sensor gives no rate), or the true rate at the sample instant (idealised)",
