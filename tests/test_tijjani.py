@@ -221,6 +221,28 @@ def test_feedforward_needs_an_observer():
         ControllerSpec(kind="srise", disturbance_feedforward=True)
 
 
+def test_output_scale_defaults_and_bounds():
+    """The unit of tau (spec.DEFAULT_SCALE): RISE's SubjuGator gains in N and N m, S+RISE's Table II gains x40 in
+    depth and x9.81 (kgf) in yaw, a custom class's own N and N m; 'inertia' is the nominal inertia; one number
+    serves both DOFs; a scale must be positive."""
+    inertia = np.array([63.0, 1.82])
+    assert ControllerSpec(kind="rise").scale(inertia).tolist() == [1.0, 1.0]
+    assert ControllerSpec(kind="srise").scale(inertia).tolist() == [40.0, 9.81]
+    custom = ControllerSpec.model_construct(kind="custom")  # its scale needs no class to import
+    assert custom.scale(inertia).tolist() == [1.0, 1.0]
+    assert ControllerSpec(kind="srise", output_scale="inertia").scale(inertia).tolist() == [63.0, 1.82]
+    assert ControllerSpec(kind="rise", output_scale=0.5).scale(inertia).tolist() == [0.5, 0.5]
+    for bad in (0.0, -1.0, (1.0, 0.0), (-2.0, 9.81)):
+        with pytest.raises(ValueError, match="output_scale must be positive"):
+            ControllerSpec(kind="srise", output_scale=bad)
+
+
+def test_source_and_params_are_for_custom_controllers_only():
+    for settings in ({"params": {"kp": 1.0}}, {"source": "pid.py:Pid"}):
+        with pytest.raises(ValueError, match="source and params are for custom controllers, not rise"):
+            ControllerSpec(kind="rise", **settings)
+
+
 def test_gain_overrides_are_checked_not_ignored():
     """A misspelt or out-of-range gain override is a config error (it used to be dropped silently)."""
     with pytest.raises(ValueError, match=r"depth: unknown srise gain\(s\) \['bogus'\]"):
