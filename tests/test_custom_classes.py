@@ -4,6 +4,7 @@ exit code 2, nothing written."""
 
 import hashlib
 import json
+import os
 import shutil
 
 import pandas as pd
@@ -12,6 +13,7 @@ import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
+from marinebench.plugins import resolve_source, split_source, user_class
 
 from .conftest import ROOT, md_row
 
@@ -187,3 +189,31 @@ def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_e
     assert res.exit_code == 2 and len(lines) == 1, res.output
     assert lines[0].startswith(f"error: {controller_example}: {key}: ") and message in lines[0], lines[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_a_source_names_a_file_or_module_and_a_class():
+    assert split_source("pid.py:Pid") == ("pid.py", "Pid")
+    assert split_source("package.module:Class") == ("package.module", "Class")
+    for bad in ("Pid", ":Pid", "pid.py:", "pid.py:1x"):
+        with pytest.raises(ValueError, match="expected file.py:ClassName or package.module:ClassName"):
+            split_source(bad)
+
+
+def test_only_a_relative_file_source_is_resolved_against_the_config(tmp_path):
+    assert resolve_source("pid.py:Pid", tmp_path) == f"{(tmp_path / 'pid.py').resolve()}:Pid"
+    absolute = f"{tmp_path / 'x' / 'pid.py'}:Pid"
+    for unchanged in ("package.module:Class", absolute, "pid.py", None, 3):
+        assert resolve_source(unchanged, tmp_path) == unchanged
+
+
+def test_a_file_source_is_cached_until_it_changes(tmp_path):
+    """plugins.user_class: the same class object while the file is unchanged, re-imported once its mtime moves."""
+    path = tmp_path / "mine.py"
+    path.write_text("class Mine:\n    value = 1\n")
+    source = f"{path}:Mine"
+    first = user_class(source, ["value"])
+    assert first.value == 1 and user_class(source, ["value"]) is first
+    path.write_text("class Mine:\n    value = 2\n")
+    stat = path.stat()
+    os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
+    assert user_class(source, ["value"]).value == 2
