@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.dp_scenario import DpScenario, DpWorld
-from marinebench.experiments.runner import make_observer, plant_of, run
+from marinebench.experiments.runner import DESIGNS_UP_TO, design_summary, make_observer, plant_of, run
 from marinebench.loading import load_experiment
 from marinebench.observers.dp import ResettingTuning
 from marinebench.sim.recorders import NormIntegral
@@ -373,3 +373,20 @@ def test_one_step_is_each_runs_own_exact_map_in_a_batch_of_two_design_classes():
         np.testing.assert_allclose(out[b, :, :, 9] / scale, z[..., 0] / scale, rtol=0, atol=1e-9)
         np.testing.assert_allclose(out[b, :, :, :9], P[0], rtol=1e-12, atol=1e-12)  # Phi_i advanced from I
     assert not np.allclose(out[0, :, :, :9], out[1, :, :, :9])  # the two classes' maps differ
+
+
+@pytest.mark.parametrize("config, sets, key", [
+    ("torben_fig1.yaml", [], "K1_L1"),  # a DP observer's Kalman gains
+    ("tijjani_observers.yaml", ["variants[cdo].observer.cdo.theta=20"], "cdo"),  # a variant's own CDO design
+])
+def test_the_manifest_lists_each_variants_design_up_to_designs_up_to_variants(config, sets, key):
+    """runner.design_summary: per-variant designs for at most DESIGNS_UP_TO variants (a sweep's many are skipped)."""
+    exp, _ = load_experiment(ROOT / "configs" / config, sets=sets)
+    base = exp.variants[0]
+
+    def designs(n: int) -> dict:
+        return design_summary(exp.model_copy(update={"variants": [base.model_copy(update={"name": f"v{i}"})
+                                                                  for i in range(n)]}))
+
+    assert key in designs(DESIGNS_UP_TO)["v0"]
+    assert key not in designs(DESIGNS_UP_TO + 1).get("v0", {})

@@ -432,6 +432,19 @@ def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
         assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
 
 
+def test_recovery_during_a_turn_is_timed_against_the_twin_only_when_asked(tmp_path):
+    """S3's push (f) during the 60 -> -60 deg turn: against the reference the turn's own tracking error (degrees)
+    keeps yaw out of the 1 deg band long after the push, against the undisturbed twin it does not."""
+    doc = {"scenario": {"from": str(ROOT / "scenarios" / "rov_s3.yaml"), "horizon": 24.0,
+                        "pushes": [{"t_start": 18.2, "duration": 0.1, "force": [0.0, -20.6]}]},
+           "seeds": 1, "variants": [{"name": "srise", "controller": {"kind": "srise"}}],
+           "metrics": [{"kind": "recovery", "name": f"recovery_{against}", "tol": {"yaw": 0.0175}, "window": 5.0,
+                        "against": against, "signals": ["yaw"]} for against in ("reference", "undisturbed")]}
+    exp, _ = load_experiment(write(tmp_path, doc))
+    m = run(exp, traces=False).metrics.set_index("metric")["value"]
+    assert m["recovery_undisturbed"] + 1.0 < m["recovery_reference"], m
+
+
 def test_every_output_names_the_leonard_like_model(tmp_path, monkeypatch):
     """The issue asks for the name ``leonard_like`` in every output: each table.md, claims.md and manifest and
     every figure's title, of runs and of one-at-a-time and grid sweeps (their titles come from the code, not

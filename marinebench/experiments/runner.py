@@ -44,6 +44,7 @@ OBSERVER_KINDS = {
 LUMPED_KINDS = ("bejarano", "liu_eso")  # observers of the lumped disturbance sigma (Bejarano eq. (6))
 # Observers a closed-loop world runs itself; a variant's `observer` picks the one whose estimates it reports.
 WORLD_OBSERVERS = {"rov_tracking": ("cdo", "eo")}
+DESIGNS_UP_TO = 20  # variants whose per-variant Kalman or CDO/EO designs the manifest lists (a sweep has more)
 
 
 def observer_kinds_for(scenario) -> tuple[str, ...]:
@@ -168,7 +169,7 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
             out[v.name] = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
             if v.controller.kind == "custom":
                 out[v.name]["controller_sha256"] = source_digest(v.controller.source)
-            if o is not None and (o.cdo or o.eo) and len(exp.variants) <= 20:
+            if o is not None and (o.cdo or o.eo) and len(exp.variants) <= DESIGNS_UP_TO:
                 cdo, eo = o.resolve(exp.scenario)
                 out[v.name].update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))
         elif o.kind == "bejarano":
@@ -188,7 +189,7 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
         elif o.kind == "liu_eso":
             gains = [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3]
             out[v.name] = {"gains": gains, "mode": o.mode, **(noise_parts(exp.scenario, {"u": gains, "v": gains}) if o.mode == "linear" else {})}
-        elif len(exp.variants) <= 20:  # DP observers: Kalman gains (skipped for large sweeps)
+        elif len(exp.variants) <= DESIGNS_UP_TO:  # DP observers: Kalman gains (skipped for large sweeps)
             obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
             design = obs.classes[0]
             used = (0,) if design["one_gain"] else (0, 1)  # the NPO runs L1 alone (L2 = L1)
