@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 import yaml
 
+from marinebench.config import FigureSpec, TableSpec
 from marinebench.dp_scenario import DpScenario, DpWorld
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import make_observer, plant_of, run, wants_lumped
@@ -110,6 +111,28 @@ def test_dp_observers_report_sigma_only_when_asked(tmp_path):
     assert wants_lumped(asked)
     m = run(asked, traces=False).metrics
     assert set(m[m["metric"] == "rmse"]["signal"]) == {"v", "sigma_v"}
+
+
+def test_a_figure_or_the_table_asking_for_sigma_is_asking_too(tmp_path):
+    """sigma asked for by a figure or by the table alone (no metric records it) turns the DP observers' sigma on."""
+    npo = [{"name": "npo", "observer": {"kind": "npo"}}]
+    rmse_v = [{"kind": "rmse", "t_start": 0.0, "signals": ["v"]}]
+    exp, _ = cross_experiment(tmp_path, variants=npo, metrics=rmse_v, table=None)
+    assert not wants_lumped(exp)
+    assert wants_lumped(exp.model_copy(update={"figures": [FigureSpec(file="s.png", signals=["v", "sigma_v"])]}))
+    assert wants_lumped(exp.model_copy(update={"table": TableSpec(title="t", metric="rmse", signals=["sigma_u"])}))
+
+
+def test_the_dp_observers_report_sigma_on_the_asv_world_unasked():
+    """On the open-loop ASV world the truth is sigma (no bias): an NPO there reports the sigma it implies even
+    when the experiment names no sigma signal."""
+    exp, _ = load_experiment(ROOT / "configs" / "bejarano_table3.yaml")
+    exp = exp.model_copy(update={"variants": [exp.variants[0].model_copy(update={"observer": NpoTuning()})],
+                                 "metrics": [exp.metrics[0].model_copy(update={"signals": ["u"]})], "figures": [],
+                                 "table": None})
+    assert wants_lumped(exp)
+    obs = make_observer("npo", [NpoTuning()], exp.scenario, plant_of(exp.scenario), wants_lumped(exp))
+    assert {"sigma_u", "sigma_v", "sigma_r"} <= set(obs.outputs(obs.init()))
 
 
 def test_the_dp_observers_sigma_is_their_model_solved_for_the_acceleration():
