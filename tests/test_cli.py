@@ -411,6 +411,9 @@ def test_design_prints_the_solved_gains_without_simulating():
     doc = yaml.safe_load(res.output)["bejarano_table4"]
     assert set(doc) == {"liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2"}
     assert doc["liu_eps0.1"]["gains"] == [30.0, 300.0, 1000.0]  # k / eps, k / eps^2, k / eps^3 to 6 digits
+    res = runner.invoke(app, ["design", str(ROOT / "configs" / "bejarano_table4.yaml"), "--json",
+                              "--set", "variants.1.observer.k=[4, 5, 2]"])  # each k_i with its own power of eps
+    assert json.loads(res.output)["bejarano_table4"]["liu_eps0.1"]["gains"] == pytest.approx([40.0, 500.0, 2000.0])
     assert doc["proposed_d2.2"]["slowest_pole_p"] <= -2.2  # the LMI region: poles left of -delta_p1
     res = runner.invoke(app, ["design", config, "--set", "scenario.cdo.lmi_decay=-1"])
     assert res.exit_code == 2 and res.output.startswith("error: --set: scenario.cdo.lmi_decay")

@@ -16,7 +16,7 @@ from marinebench.design.cdo import (
     verify_lmi,
 )
 from marinebench.errors import ConfigError, DesignError
-from marinebench.experiments.runner import run
+from marinebench.experiments.runner import _recorders, run, steps
 from marinebench.loading import load_experiment, load_scenario, preflight
 from marinebench.rov_scenario import min_jerk
 from marinebench.sim.recorders import RecoveryTime
@@ -430,6 +430,9 @@ def test_recovery_is_timed_per_signal_after_that_signals_own_pushes(tmp_path):
     for against in ("reference", "undisturbed"):  # undisturbed: against the same run without the push
         rec = m[m["metric"] == f"recovery_{against}"]
         assert rec["signal"].tolist() == ["depth"] and 0 < rec["value"].iloc[0] < 3.0
+    one = np.zeros(1, dtype=int)
+    for rec in _recorders(exp, one, one, steps(exp)):  # timed from the push's end, 2.0 + 0.1 s
+        assert list(rec.events) == ["depth"] and rec.events["depth"] == [pytest.approx(2.1)]
 
 
 def test_recovery_during_a_turn_is_timed_against_the_twin_only_when_asked(tmp_path):
