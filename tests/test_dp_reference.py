@@ -4,6 +4,8 @@ solves with cond(I - Phi2 Phi1^-1) ~ 7e8, which amplifies the ~1e-15 differences
 harmonic maps and the directly formed RK4 maps to ~5e-9 (measured 4.6e-9 / 7.6e-9); that point is checked
 to the bound cond * 1e-16 ~ 1e-7 instead."""
 
+import time
+
 import numpy as np
 
 from marinebench.experiments.reference import reference_run
@@ -45,3 +47,30 @@ def test_batched_equals_reference_with_model_mismatch():
         assert batched[v.name, "n_jumps"] == ref["n_jumps"], v.name
         jumps += ref["n_jumps"]
     assert jumps > 0
+
+
+def test_batched_equals_reference_where_the_condition_check_blocks_every_jump():
+    """delta = one step: cond(I - Phi2 Phi1^-1) ~ 9e22 > c_max at every window, so neither engine jumps and the
+    resetting observer's J is the NPO's; with a window of two steps the jumps stay blocked too."""
+    base, _ = load_experiment(MATCHED, ["scenario.horizon=40"])
+    npo, resetting = base.variants
+    variants = [npo] + [resetting.model_copy(update={"name": f"delta_{n}", "observer": resetting.observer.model_copy(
+        update={"delta": n * base.scenario.dt, "eps_scale": 0.01})}) for n in (1, 2)]
+    exp = base.model_copy(update={"variants": variants})
+    batched = run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
+    for i, v in enumerate(variants):
+        ref = reference_run(exp, i)
+        assert np.isclose(batched[v.name, "J_tot"], ref["J_tot"], rtol=1e-9, atol=0), v.name
+        assert batched[v.name, "n_jumps"] == ref["n_jumps"] == 0, v.name
+        assert np.isclose(ref["J_tot"], batched["npo", "J_tot"], rtol=1e-9), v.name
+
+
+def test_against_reference_reports_seconds_per_run_and_the_worst_difference():
+    from marinebench.experiments.reference import against_reference
+
+    base, _ = load_experiment(MATCHED, ["scenario.horizon=20"])
+    batched = run(base, traces=False).metrics
+    t0 = time.perf_counter()
+    per_run, worst = against_reference(base, batched, [0, 1])
+    elapsed = time.perf_counter() - t0
+    assert 0 < 2 * per_run <= elapsed and worst < 1e-9
