@@ -74,3 +74,14 @@ def test_against_reference_reports_seconds_per_run_and_the_worst_difference():
     per_run, worst = against_reference(base, batched, [0, 1])
     elapsed = time.perf_counter() - t0
     assert 0 < 2 * per_run <= elapsed and worst < 1e-9
+
+
+def test_batched_equals_reference_while_a_load_ramps_within_the_steps():
+    """A slow load ramping over the run: the plant's RK4 stages see it at t, t + dt/2 and t + dt in both engines
+    (the impulses of the other tests switch on step boundaries, where the stage times do not show)."""
+    ramp = '[{"kind": "slow", "t_start": 0.0, "duration": 30.0, "rise": 10.0, "force": [3.0e5, 5.0e5, 1.0e7]}]'
+    exp, _ = load_experiment(MATCHED, ["scenario.horizon=15", f"scenario.events={ramp}"])
+    batched = run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
+    for i, v in enumerate(exp.variants):
+        ref = reference_run(exp, i)
+        assert np.isclose(batched[v.name, "J_tot"], ref["J_tot"], rtol=1e-9, atol=0), v.name
