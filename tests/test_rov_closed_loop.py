@@ -58,6 +58,10 @@ def test_control_energy_starts_when_the_reference_is_reached():
     for k, e in enumerate(errors):
         rec.update(k, 0.1 * k, {"depth": np.array([0.0]), "tau_depth": np.array([2.0])}, {"depth": np.array([e])})
     assert rec.value["depth"][0] == pytest.approx(3 * 4.0 * 0.1)  # from the 3rd sample on, even if it leaves
+    at_tol = ControlEnergy(["depth"], ["tau_depth"], [0.25], 0.5)  # an error of exactly tol has reached it
+    for k, e in enumerate([0.5, 0.25, 0.5]):  # at 1 m: the error is reference minus depth
+        at_tol.update(k, 0.5 * k, {"depth": np.array([1.0]), "tau_depth": np.array([2.0])}, {"depth": np.array([1.0 + e])})
+    assert at_tol.value["depth"][0] == 2 * 4.0 * 0.5
 
 
 def test_closed_loop_needs_controllers_and_estimation_needs_observers(tmp_path):

@@ -10,7 +10,7 @@ from marinebench.results import writer
 from marinebench.results.writer import atomic_directory, atomic_write_text
 from marinebench.scenario import stream_rngs
 from marinebench.sensors.noise import BandLimitedUniform
-from marinebench.sim.recorders import ErrorMoments
+from marinebench.sim.recorders import ErrorMoments, Traces
 
 
 def sample_noise(spec, seed=0, T=200.0, dt=0.05):
@@ -52,6 +52,32 @@ def test_error_moments_match_numpy():
     np.testing.assert_allclose(rec.result("std")["u"], window.std(axis=0), rtol=1e-12)
     np.testing.assert_allclose(rec.result("rmse")["u"], np.sqrt((window**2).mean(axis=0)), rtol=1e-12)
     np.testing.assert_allclose(rec.result("max_abs")["u"], np.abs(window).max(axis=0))
+
+
+def test_traces_keep_every_nth_step_of_the_chosen_runs():
+    every, third = Traces(["u"], 1), Traces(["u"], 3, np.array([1]))
+    for k in range(7):
+        for tr in (every, third):
+            tr.update(k, 0.1 * k, {"u": np.array([k, 10.0 * k])}, {"u": np.array([-k, -10.0 * k])})
+    t, truth, est = every.arrays()
+    assert t.size == 7 and truth["u"].shape == (7, 2)
+    t, truth, est = third.arrays()
+    np.testing.assert_allclose(t, [0.0, 0.3, 0.6])
+    assert truth["u"][:, 0].tolist() == [0.0, 30.0, 60.0] and est["u"][:, 0].tolist() == [0.0, -30.0, -60.0]
+
+
+def test_error_moments_of_one_sample_and_of_none():
+    """A window that holds one step gives that step's error (std 0); an empty one is an error naming the window."""
+    one = ErrorMoments(["u"], t_start=0.5, t_end=0.5)
+    for k in range(3):
+        one.update(k, k * 0.5, {"u": np.zeros(2)}, {"u": np.array([-0.3, 0.4]) * (k + 1)})
+    assert one.result("std")["u"].tolist() == [0.0, 0.0]
+    np.testing.assert_allclose(one.result("rmse")["u"], [0.6, 0.8])
+    np.testing.assert_allclose(one.result("mean")["u"], [-0.6, 0.8])
+    none = ErrorMoments(["u"], t_start=5.0, t_end=6.0)
+    none.update(0, 0.0, {"u": np.zeros(2)}, {"u": np.ones(2)})
+    with pytest.raises(ValueError, match=r"no samples in the metric window t in \[5.0, 6.0\]"):
+        none.result("rmse")
 
 
 @settings(max_examples=30)

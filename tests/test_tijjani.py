@@ -214,6 +214,11 @@ def test_recovery_time_counts_from_the_end_of_each_push():
     for k, (t, e) in enumerate(errors.items()):
         rec.update(k, t, {"depth": np.array([0.0])}, {"depth": np.array([e])})
     assert rec.value["depth"][0] == pytest.approx(0.5)  # out of the band until 1.5 s after the first push
+    # a deviation of exactly tol is in the band; the window [t_e, t_e + window) leaves its end out
+    edge = RecoveryTime({"depth": [1.0]}, {"depth": 0.25}, window=1.0)
+    for k, (t, e) in enumerate([(0.5, 0.5), (1.0, 0.5), (1.5, 0.25), (2.0, 0.5)]):
+        edge.update(k, t, {"depth": np.array([0.0])}, {"depth": np.array([e])})
+    assert edge.value["depth"][0] == 0.0
 
 
 def test_feedforward_needs_an_observer():
