@@ -571,3 +571,20 @@ def test_a_metric_where_higher_is_better_turns_the_verdict(monkeypatch):
     assert compare_frames(frame(base), frame(up)).verdict.tolist() == ["worse"]
     monkeypatch.setattr(compare, "HIGHER_IS_BETTER", {"std"})
     assert compare_frames(frame(base), frame(up)).verdict.tolist() == ["better"]
+
+
+def test_two_seeds_have_an_interval_and_the_relative_columns_are_of_the_baseline():
+    """Two paired seeds already bootstrap an interval: +25 % on both is worse, +25 % on one and -5 % on the other
+    is no change (the interval reaches below zero), though either's mean change is beyond the tolerance. Unpaired,
+    the relative interval is Welch's interval in units of the baseline's mean."""
+    base = pd.DataFrame({"experiment": "e", "scenario": "s", "variant": "a", "seed": [0, 1], "signal": "u",
+                         "metric": "std", "value": [2.0, 2.0], "status": "ok"})
+    worse = compare_frames(base, base.assign(value=[2.5, 2.5])).iloc[0]
+    assert worse["verdict"] == "worse" and worse["rel_change"] == 0.25 and worse["ci_low"] == worse["ci_high"] == 0.5
+    mixed = compare_frames(base, base.assign(value=[2.5, 1.9])).iloc[0]
+    assert mixed["verdict"] == "same" and mixed["ci_low"] < 0 < mixed["ci_high"]
+    spread = base.assign(value=[1.0, 3.0])
+    row = compare_frames(spread, spread.assign(value=[2.0, 5.0]), paired=False).iloc[0]
+    lo, hi = welch_ci(np.array([1.0, 3.0]), np.array([2.0, 5.0]))
+    assert (row["ci_low"], row["ci_high"]) == (lo, hi) and (row["rel_ci_low"], row["rel_ci_high"]) == (lo / 2, hi / 2)
+    assert row["rel_change"] == 1.5 / 2
