@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.results.compare import (
+    COLUMNS,
     Tolerance,
     compare_frames,
     paired_bootstrap_ci,
@@ -105,6 +106,12 @@ def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
     verdicts = dict(zip(zip(table["variant"], table["signal"]), table["verdict"]))
     assert verdicts[("a", "u")] == "better" and verdicts[("a", "v")] == "missing" and verdicts[("c", "u")] == "new"
     assert list(table["verdict"])[:2] == ["missing", "new"]
+    assert list(table.columns) == ["experiment", "scenario", "variant", "signal", "metric", *COLUMNS]
+    missing = table[table["verdict"] == "missing"].iloc[0]  # its baseline mean, nothing for the candidate
+    assert missing["baseline"] == pytest.approx(base_values[("a", "v")].mean()) and np.isnan(missing["candidate"])
+    md = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")]).output
+    row = next(line for line in md.splitlines() if "MISSING" in line.upper() and "| a | v |" in line)
+    assert f"| {base_values[('a', 'v')].mean():.4g} | – |" in row, row
     strict = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--strict"])
     assert strict.exit_code == 1 and "1 missing" in strict.output  # a dropped cell fails a strict gate
     only_new = runner.invoke(app, ["compare", str(tmp_path / "cand"), str(tmp_path / "cand"), "--strict"])
