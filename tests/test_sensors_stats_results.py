@@ -32,6 +32,17 @@ def test_noise_is_bounded_and_band_limited():
     assert abs(n.std() / 0.033 - 1) < 0.15
 
 
+def test_noise_defaults_to_the_std_of_a_uniform_and_needs_a_band():
+    """Without rms the std is that of U(-bound, bound); a flat response passes it unchanged (the trapezoid mean of
+    a constant is the constant); a band of zero width is refused."""
+    spec = BandLimitedUniform(bound=0.3)
+    assert spec.std == pytest.approx(0.3 / np.sqrt(3.0), rel=1e-15)
+    flat = spec.response_std(lambda w: np.ones((2, w.size)))
+    np.testing.assert_allclose(flat, [spec.std, spec.std], rtol=1e-12)
+    with pytest.raises(ValueError, match="f_low=0.3 must be below f_high=0.3"):
+        BandLimitedUniform(f_low=0.3, f_high=0.3)
+
+
 def test_noise_reproducible_and_channels_independent():
     spec = BandLimitedUniform()
     _, a = sample_noise(spec, seed=3)
