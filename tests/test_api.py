@@ -1,5 +1,7 @@
 """The Python API (``marinebench.load/run/write``) gives what the command line gives."""
 
+import time
+
 import pytest
 from typer.testing import CliRunner
 
@@ -71,16 +73,14 @@ def test_a_dp_world_names_a_model_mismatch_only_where_the_observers_model_differ
 def test_a_multi_scenario_run_stacks_its_parts_and_counts_their_cost():
     """Tijjani's Table III runs three variants on S1, S2-C1 and S2-C2 and CDO-S+RISE alone on S3: the cost counts
     runs x steps per scenario, the stacked metrics are indexed afresh, the parts keep their own traces."""
-    import time
-
-    from marinebench.experiments.runner import run, run_steps, steps
+    from marinebench.experiments.runner import run_steps, steps
 
     rov = ROOT / "configs" / "tijjani_table3.yaml"
     exp = mb.load(rov, sets=[f"scenarios.{s}.horizon=0.02" for s in ("S1", "S2-C1", "S2-C2", "S3")] + ["seeds=2"])
     n = 10  # 0.02 s at the ROV world's 2-ms step
     assert steps(exp) == 4 * n and run_steps(exp) == (3 + 3 + 3 + 1) * 2 * n
     t0 = time.perf_counter()
-    result = run(exp)
+    result = mb.run(exp)
     elapsed = time.perf_counter() - t0
     assert 0 < result.wall_time <= elapsed
     assert list(result.metrics.index) == list(range(len(result.metrics)))
@@ -88,5 +88,5 @@ def test_a_multi_scenario_run_stacks_its_parts_and_counts_their_cost():
     assert result.traces[0].size == 0 and result.traced.size == 0  # the figures draw from the parts
     s3 = result.parts["S3"]
     assert list(s3.traced) == [0] and s3.traces[0].size > 0  # seed 0 of its one variant is drawn
-    untraced = run(exp.part("S3"), traces=False)
+    untraced = mb.run(exp.part("S3"), traces=False)
     assert untraced.traced.size == 0 and untraced.traces[0].size == 0
