@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from scipy.linalg import expm
-from scipy.signal import freqz
+from scipy.signal import freqz, lfilter
 
 from marinebench.design.kalman import C_DP, dp_system, gain_at, kalman_gains
 from marinebench.environment.waves import dnv_gamma, jonswap
@@ -67,6 +67,23 @@ def test_notch_gain():
     f = Biquad(b, a, (1, 1))
     f.reset_to(np.array([[3.0]]))
     assert abs(f(np.array([[3.0]]))[0, 0] - 3.0) < 1e-12  # DC gain 1, no start-up transient
+
+
+def test_notch_is_eq_49_at_the_prewarped_frequencies():
+    """Tustin with pre-warping maps the discrete frequency w to the analogue K tan(w dt / 2), K = w0 / tan(w0 dt / 2):
+    the biquad's response there is H(s) = (s^2 + w0^2) / (s^2 + wc s + w0^2) of eq. (49) exactly, for a w0 and a
+    step other than 1 (so no power of w0 or of K is hidden by a unit value)."""
+    w0, wc, dt = 0.8, 0.3, 0.2
+    b, a = tustin_notch(w0, wc, dt)
+    assert a[0] == 1.0
+    w = np.array([0.05, 0.4, 0.8, 1.3, 4.0])
+    _w, h = freqz(b, a, worN=w * dt)  # worN in rad/sample
+    s = 1j * w0 / np.tan(w0 * dt / 2) * np.tan(w * dt / 2)
+    np.testing.assert_allclose(h, (s**2 + w0**2) / (s**2 + wc * s + w0**2), rtol=1e-12, atol=1e-13)
+    f = Biquad(b, a, (2, 3))  # batched: each run and channel is its own direct-form filter
+    x = np.random.default_rng(0).standard_normal((300, 2, 3)) + np.sin(w0 * dt * np.arange(300))[:, None, None]
+    y = np.array([f(xk) for xk in x])
+    np.testing.assert_allclose(y, lfilter(b, a, x, axis=0), rtol=0, atol=1e-12)
 
 
 def test_kalman_l1_l2():
