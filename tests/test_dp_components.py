@@ -48,6 +48,29 @@ def test_jonswap_peak_is_narrower_below_the_peak_frequency():
     np.testing.assert_allclose(enhancement, [gamma ** np.exp(-0.5), gamma, gamma ** np.exp(-0.5)], rtol=1e-12)
 
 
+def test_jonswap_written_out_off_the_unit_values():
+    """The module docstring's S(w) at Hs = 3.5 m, Tp = 9 s (w0 = 0.698 rad/s), gamma = 2.5, on both sides of the
+    peak: (1 - 0.287 ln gamma) (5/16) Hs^2 w0^4 w^-5 exp(-5/4 (w0/w)^4) gamma^exp(-(w - w0)^2 / (2 s^2 w0^2))."""
+    hs, tp, gamma = 3.5, 9.0, 2.5
+    w0, w = 2 * np.pi / tp, np.array([0.45, 0.65, 0.75, 1.3])
+    sig = np.where(w <= w0, 0.07, 0.09)
+    want = ((1 - 0.287 * np.log(gamma)) * 5 / 16 * hs**2 * w0**4 * w**-5 * np.exp(-1.25 * (w0 / w) ** 4)
+            * gamma ** np.exp(-((w - w0) ** 2) / (2 * sig**2 * w0**2)))
+    np.testing.assert_allclose(jonswap(w, hs, tp, gamma), want, rtol=1e-12)
+    np.testing.assert_allclose(jonswap(w, hs, tp), jonswap(w, hs, tp, 3.3), rtol=0)  # gamma defaults to 3.3
+
+
+def test_dnv_gamma_in_its_three_regimes_and_no_energy_at_zero_frequency():
+    """DNV-RP-C205's gamma from k = Tp / sqrt(Hs): 5 for k <= 3.6, exp(5.75 - 1.15 k) up to k = 5, 1 above; the
+    spectrum is 0 at w = 0 (and below), not the 0 x inf of w^-5 exp(-w0^4 / w^4)."""
+    assert dnv_gamma(4.0, 7.0) == 5.0  # k = 3.5
+    assert dnv_gamma(4.0, 8.0) == pytest.approx(np.exp(5.75 - 1.15 * 4.0), rel=1e-12)  # k = 4
+    assert dnv_gamma(1.0, 6.0) == 1.0  # k = 6
+    assert dnv_gamma(1.0, 5.0) == pytest.approx(1.0, rel=1e-12)  # continuous at k = 5
+    s = jonswap(np.array([-1.0, 0.0, 1e-3]), 2.0, 6.3)
+    assert s.tolist() == [0.0, 0.0, 0.0] and np.isfinite(s).all()
+
+
 def test_gauss_markov_stationary_std():
     rng = np.random.default_rng(0)
     c, ts, sigma = 1 / 20.0, 1.0, 0.5  # short time constant so the test reaches stationarity quickly
@@ -84,6 +107,54 @@ def test_notch_is_eq_49_at_the_prewarped_frequencies():
     x = np.random.default_rng(0).standard_normal((300, 2, 3)) + np.sin(w0 * dt * np.arange(300))[:, None, None]
     y = np.array([f(xk) for xk in x])
     np.testing.assert_allclose(y, lfilter(b, a, x, axis=0), rtol=0, atol=1e-12)
+
+
+def _rot(psi: float) -> np.ndarray:
+    c, s = np.cos(psi), np.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize(("units", "arm", "scale"), [
+    ("acceleration", None, None), ("force", None, [1.0, 1.0, 1.0]), ("kN", 76.2, [1e3, 1e3, 76.2e3]),
+    ("10kN", 2.0, [1e4, 1e4, 2e4]), ("100kN", None, [1e5, 1e5, 1e5]), ("MN", 1.0, [1e6, 1e6, 1e6])])
+def test_kalman_gains_written_out(units, arm, scale):
+    """The design model of design/kalman.py's docstring written out: eta' = nu, nu' = -M^-1 D nu + B b, b' = w
+    (B = I for the bias as an acceleration, M^-1 diag(unit) for a force unit with the moment in unit x arm),
+    y = eta + v; L0 = P C^T R^-1 from the CARE, K1 = L0_eta, K2 = M L0_b (acceleration) or diag(unit) L0_b,
+    K3 = M L0_nu; poles of A(0) - L(0) C in the force-unit model of eq. (43)."""
+    M, D = VESSEL.M, VESSEL.D
+    Q, R = np.diag([50.0, 40.0, 10.0]), np.diag([15.0, 12.0, 1.0])
+    Minv, Z, I3 = np.linalg.inv(M), np.zeros((3, 3)), np.eye(3)
+    B = I3 if scale is None else Minv @ np.diag(scale)
+    A = np.block([[Z, Z, I3], [Z, Z, Z], [Z, B, -Minv @ D]])
+    C, G = np.hstack([I3, Z, Z]), np.vstack([Z, I3, Z])
+    from scipy.linalg import solve_continuous_are
+
+    P = solve_continuous_are(A.T, C.T, G @ Q @ G.T, R)
+    L0 = P @ C.T @ np.linalg.inv(R)
+    g = kalman_gains(M, D, Q, R, bias_units=units, **({} if arm is None else {"moment_arm": arm}))  # default arm: 1
+    np.testing.assert_allclose(g.K1, L0[0:3], rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(g.K2, (M if scale is None else np.diag(scale)) @ L0[3:6], rtol=1e-8, atol=1e-9)
+    np.testing.assert_allclose(g.K3, M @ L0[6:9], rtol=1e-8, atol=1e-6)
+    assert g.riccati_residual < 1e-9
+    A43 = np.block([[Z, Z, I3], [Z, Z, Z], [Z, Minv, -Minv @ D]])  # eq. (43) at psi = 0, bias in N
+    want = np.linalg.eigvals(A43 - gain_at(g, M) @ C)
+    np.testing.assert_allclose(np.sort_complex(g.poles), np.sort_complex(want), rtol=1e-9, atol=1e-12)
+    if scale is None:  # the acceleration model is eq. (43) with b_a = M^-1 b: the same poles
+        np.testing.assert_allclose(np.sort_complex(g.poles), np.sort_complex(np.linalg.eigvals(A - L0 @ C)), rtol=1e-7)
+
+
+def test_dp_system_and_gain_at_written_out():
+    """Eq. (43) A(psi) = [[0, 0, R], [0, 0, 0], [0, M^-1 R^T, -M^-1 D]] and eq. (47) L(psi) = [K1; K2; M^-1 R^T K3]
+    at a heading far from 0, with K's that are not symmetric."""
+    M, D, psi = VESSEL.M, VESSEL.D, 2.1
+    Rp, Minv, Z = _rot(psi), np.linalg.inv(VESSEL.M), np.zeros((3, 3))
+    np.testing.assert_allclose(dp_system(M, D, psi), np.block([[Z, Z, Rp], [Z, Z, Z], [Z, Minv @ Rp.T, -Minv @ D]]),
+                               rtol=1e-12, atol=1e-20)
+    K1, K2, K3 = (np.arange(9.0).reshape(3, 3) + k for k in (1, 10, 1e5))
+    g = kalman_gains(M, D, Q1, R1)
+    g = type(g)(K1, K2, K3, 0.0, np.empty(0))
+    np.testing.assert_allclose(gain_at(g, M, psi), np.vstack([K1, K2, Minv @ Rp.T @ K3]), rtol=1e-12, atol=1e-20)
 
 
 def test_kalman_l1_l2():
