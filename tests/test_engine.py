@@ -7,6 +7,7 @@ from marinebench.batch import columns
 from marinebench.errors import StiffnessError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
+from marinebench.sim.engine import ObserverGroup, check_step, rk4_step
 
 from .conftest import ROOT, md_row
 
@@ -53,6 +54,44 @@ def test_stiff_gains_refused_with_clear_message(tiny_config):
     exp, _ = load_experiment(tiny_config, ["scenario.dt=0.05"])
     with pytest.raises(StiffnessError, match=r"dt=0.05 s is too large .* use dt <="):
         run(exp)
+
+
+class _Rate:
+    """An observer stand-in with a given fastest pole."""
+
+    def __init__(self, rate: float) -> None:
+        self.rate = rate
+
+    def max_rate(self) -> float:
+        return self.rate
+
+
+def test_step_check_accepts_dt_lambda_at_the_limit_and_names_the_largest_step():
+    """dt |lambda| = limit passes (0.125 s x 4 rad/s = 0.5, exact in binary); above it the error gives the
+    fastest pole over the groups and the step that would pass; no observer (a world alone) passes any step."""
+    groups = [ObserverGroup(_Rate(1.0), np.arange(1)), ObserverGroup(_Rate(4.0), np.arange(1))]
+    assert check_step(groups, 0.125, 0.5) == 4.0
+    with pytest.raises(StiffnessError) as e:
+        check_step(groups, 0.25, 0.5)
+    assert str(e.value) == ("dt=0.25 s is too large for observer poles up to |lambda|=4 rad/s (dt*|lambda| = 1 > 0.5); "
+                            "use dt <= 0.125")
+    assert check_step([], 1e3, 0.5) == 0.0
+
+
+def test_rk4_step_is_the_classic_scheme():
+    """On x' = A x one step is the 4th-order Taylor polynomial of exp(A dt); on x' = f(t) it is Simpson's rule over
+    the step (stages at t, t + dt/2 twice, t + dt); every state of the list (plant, observers) takes the same step."""
+    A = np.array([[-0.3, 1.2], [-0.7, -0.1]])
+    x0, dt = np.array([[1.0, -2.0], [0.5, 0.25]]), 0.4
+    hA = dt * A
+    taylor = np.eye(2) + hA + hA @ hA / 2 + hA @ hA @ hA / 6 + hA @ hA @ hA @ hA / 24
+    linear = rk4_step(lambda t, s: [s[0] @ A.T, s[1] @ A.T], 0.0, dt, [x0, 2 * x0])
+    np.testing.assert_allclose(linear[0], x0 @ taylor.T, rtol=1e-14)
+    np.testing.assert_allclose(linear[1], 2 * x0 @ taylor.T, rtol=1e-14)
+    f = lambda t: np.array([[np.exp(t), t**5]])
+    t0 = 1.5
+    (got,) = rk4_step(lambda t, s: [f(t)], t0, dt, [np.zeros((1, 2))])
+    np.testing.assert_allclose(got, dt / 6 * (f(t0) + 4 * f(t0 + dt / 2) + f(t0 + dt)), rtol=1e-14)
 
 
 def test_progress_hears_of_every_step_and_on_start_of_their_total(tiny_config):
