@@ -79,6 +79,10 @@ def test_gauss_markov_stationary_std():
         v = gm_step(v, sigma, c, ts, rng.standard_normal(v.shape))
     assert abs(v.std() / stationary_std(sigma, c, ts) - 1) < 0.05
     assert abs(stationary_std(1.0, 1 / 1100, 1.0) - 23.46) < 0.05
+    # eq. (48) written out at a sample time other than 1 s: v+ = exp(-c Ts) v + sigma rho, per run's own sigma
+    v, rho, sig = np.array([0.4, -1.0]), np.array([0.3, 0.7]), np.array([0.5, 2.0])
+    np.testing.assert_allclose(gm_step(v, sig, 0.05, 0.5, rho), np.exp(-0.025) * v + sig * rho, rtol=1e-15)
+    assert stationary_std(0.3, 0.05, 0.5) == pytest.approx(0.3 / np.sqrt(1 - np.exp(-0.05)), rel=1e-14)
 
 
 def test_notch_gain():
