@@ -3,6 +3,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from marinebench.environment.signals import Constant, RandomSinusoid
 from marinebench.errors import ConfigError
 from marinebench.loading import apply_set
 from marinebench.metrics.stats import mean_ci
@@ -51,6 +52,40 @@ def test_noise_reproducible_and_channels_independent():
     np.testing.assert_array_equal(a, b)
     assert not np.allclose(a, c)
     assert abs(np.corrcoef(a.T)[0, 1]) < 0.3
+
+
+def test_random_sinusoid_draws_its_parameters_in_their_ranges_per_seed():
+    """Bejarano's excitation s(t) = b + a sin(2 pi f t + phi): one draw of b, a, f (uniform in their ranges) and
+    phi (uniform in [0, 2 pi)) per seed, the same draws for a seed in any batch; take() keeps the chosen runs."""
+    spec = RandomSinusoid(bias=(1.0, 2.0), amplitude=(0.5, 0.75), frequency=(0.02, 0.05))
+    seeds = list(range(400))
+    batch = spec.sample(stream_rngs(3, seeds, "F_u"))
+    assert 1.0 <= batch.bias.min() < 1.05 and 1.95 < batch.bias.max() <= 2.0
+    assert 0.5 <= batch.amplitude.min() < 0.51 and 0.74 < batch.amplitude.max() <= 0.75
+    f = batch.omega / (2 * np.pi)
+    assert 0.02 <= f.min() < 0.021 and 0.049 < f.max() <= 0.05
+    assert 0.0 <= batch.phase.min() < 0.1 and 6.2 < batch.phase.max() < 2 * np.pi
+    t = 7.3
+    np.testing.assert_allclose(batch(t), batch.bias + batch.amplitude * np.sin(2 * np.pi * f * t + batch.phase),
+                               rtol=1e-14)
+    one = spec.sample(stream_rngs(3, [5], "F_u"))
+    assert one(t)[0] == batch(t)[5]
+    picked = batch.take(np.array([5, 5, 0]))
+    np.testing.assert_allclose(picked(t), batch(t)[[5, 5, 0]], rtol=1e-14)
+    const = Constant(value=-0.4).sample(stream_rngs(3, [0, 1], "F_u"))
+    assert const(0.0).tolist() == const(12.5).tolist() == [-0.4, -0.4]
+
+
+@pytest.mark.parametrize(("fields", "message"), [
+    ({"bias": (1.0, 0.5)}, "bias: lower bound 1.0 exceeds upper bound 0.5"),
+    ({"frequency": (0.2, 0.1)}, "frequency: lower bound 0.2 exceeds upper bound 0.1"),
+    ({"amplitude": (-0.1, 0.1)}, "amplitude and frequency ranges must be non-negative"),
+    ({"frequency": (-0.1, 0.1)}, "amplitude and frequency ranges must be non-negative"),
+])
+def test_random_sinusoid_refuses_reversed_or_negative_ranges(fields, message):
+    with pytest.raises(ValueError, match=message):
+        RandomSinusoid(**fields)
+    RandomSinusoid(bias=(-1.0, -1.0), amplitude=(0.0, 0.0), frequency=(0.0, 0.0))  # a point range, bias below 0: fine
 
 
 def test_error_moments_match_numpy():
