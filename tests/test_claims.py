@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.loading import load_experiment
-from marinebench.results.claims import bootstrap_ci, evaluate
+from marinebench.results.claims import bootstrap_ci, evaluate, manifest_entries, markdown
 
 from .conftest import ROOT, md_row, tidy_metrics, write_tiny
 
@@ -137,6 +137,90 @@ def test_bootstrap_interval_covers_the_ratio_and_needs_two_seeds():
     lo, hi = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
     assert lo < a.mean() / b.mean() < hi and hi - lo < 0.05
     assert bootstrap_ci([a[:1], b[:1]], lambda x, y: x.mean() / y.mean()) is None
+
+
+def test_bootstrap_resamples_every_seed_and_its_interval_has_the_levels_width():
+    """Every seed can be drawn (the first too); from two seeds there is an interval; the 95 % and 50 % percentile
+    intervals of a mean of 400 normal values are 2 x 1.96 and 2 x 0.674 standard errors wide (within 10 %)."""
+    lo, hi = bootstrap_ci([np.array([10.0, 0.0, 0.0, 0.0, 0.0])], lambda x: x.mean())
+    assert lo == 0.0 and hi >= 4.0  # the 10 of the first seed is drawn once or more in most resamples
+    assert bootstrap_ci([np.array([1.0, 3.0])], lambda x: x.mean()) == (1.0, 3.0)
+    x = np.random.default_rng(1).standard_normal(400)
+    se = x.std() / np.sqrt(len(x))
+    for level, z in ((0.95, 1.96), (0.5, 0.674)):
+        lo, hi = bootstrap_ci([x], lambda v: v.mean(), level=level)
+        assert (hi - lo) / (2 * z * se) == pytest.approx(1.0, abs=0.1), level
+
+
+def test_checks_at_their_bounds_hold_and_their_intervals_are_of_the_claimed_statistic(tmp_path):
+    """Equality holds for the <= checks (at_most at the value, within at the factor or at 1 + rtol, near_paper at
+    either end of [1/factor, factor]); each interval is the bootstrap of the check's own statistic, here constant
+    over seeds, so it is that value exactly; ``within`` with rtol compares the others with the first listed."""
+    def in_cm(doc):
+        doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
+        doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
+
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "at_most", "a": A, "value": 3.0, "signals": ["u"], "text": "at most 3"},
+        {"kind": "within", "variants": [A, B], "factor": 2.0, "signals": ["u"], "text": "within 2x"},
+        {"kind": "within", "variants": [B, A], "rtol": 0.5, "signals": ["u"], "text": "within 50 % of B"},
+        {"kind": "less", "a": A, "b": B, "factor": 0.6, "signals": ["u"], "text": "A is half of B"},
+        {"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "near"}], in_cm))
+    res = evaluate(exp, planted({(A, "u"): [1.5, 3.0], (B, "u"): [3.0, 6.0]}))
+    assert [r.holds for r in res] == [True, True, True, True, False]
+    assert [(c.statistic, c.ci) for r in res[1:4] for c in r.checks] == [(2.0, (2.0, 2.0)), (0.5, (0.5, 0.5)),
+                                                                           (0.5, (0.5, 0.5))]
+    assert res[2].checks[0].means == {B: 4.5, A: 2.25}  # the first listed is the reference
+    near = evaluate(exp, planted({(B, "u"): [0.18, 0.18]}))[4].checks[0]  # 18 cm/s against the paper's 9
+    assert near.holds and (near.statistic, near.ci) == (2.0, (2.0, 2.0))
+    near = evaluate(exp, planted({(B, "u"): [0.045, 0.045]}))[4].checks[0]
+    assert near.holds and near.statistic == 0.5 and near.needs == "in [0.5, 2]"
+    assert evaluate(exp, planted({(B, "u"): [0.06, 0.06]}))[4].holds  # 0.67 of the paper's: not only above 1
+
+
+def test_a_pairs_interval_is_over_the_seeds_both_ran_either_side_diverged(tmp_path):
+    """The means are over each variant's own ok seeds; the interval resamples the seeds both have, whichever side
+    lost one (here B = 2 A on the common seeds, so the interval is 0.5 exactly)."""
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "less", "a": A, "b": B, "signals": ["u"],
+                                                          "text": "a below b"}]))
+    values = {(A, "u"): [1.0, 50.0, 3.0], (B, "u"): [2.0, 100.0, 6.0]}
+    for lost in ((A, "u", 1), (B, "u", 1)):
+        (check,) = evaluate(exp, tidy_metrics(values, "tiny", "cs2_noisy", {lost: "diverged"}))[0].checks
+        assert check.ci == (0.5, 0.5)
+        assert check.statistic == pytest.approx(2.0 / 36.0 if lost[0] == A else 18.0 / 4.0)
+
+
+def test_claims_md_gives_each_verdict_and_check_row(tmp_path):
+    """claims.md: the preamble says what the checks ran on (2 seeds: means and a bootstrap interval; 1 seed: no
+    interval), the summary counts claims holding and not checked, the verdict table has one row per claim, and
+    the checks table one row per check, '–' for a statistic that is not finite and a 'no data' row for a claim
+    whose variants have no rows."""
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "less", "a": A, "b": B, "signals": ["u", "v"], "text": "a below b", "source": "Table IV"},
+        {"kind": "less", "a": B, "b": A, "signals": ["u"], "text": "b below a"},
+        {"kind": "less", "a": A, "b": B, "metric": "nope", "text": "unknown metric"},
+        {"kind": "less", "a": A, "b": "liu_eps0.1", "signals": ["u"], "text": "no rows"}],
+        lambda doc: (doc["variants"].append({"name": "liu_eps0.1", "observer": {"kind": "liu_eso", "eps": 0.1}}),
+                     doc["table"].update(title="Table IV, tiny"))))
+    res = evaluate(exp, planted({(A, "u"): [1.0, 1.2], (B, "u"): [0.5, 0.5], (A, "v"): [1.0, 1.0], (B, "v"): [0.0, 0.0]}))
+    md = markdown(exp, res).splitlines()
+    assert md[0] == "## Claims checked: Table IV, tiny"
+    assert md[2].startswith(f"Checked on our means over 2 seeds, root seed {exp.seed}, per scenario and signal.")
+    assert "with a 95% bootstrap interval over seeds" in md[2] and md[2].endswith("holds on the means.")
+    assert "**1 of 4 claims hold, 1 not checked.**" in md
+    assert md[md.index("| # | verdict | claim | source | metric |") + 2:][:4] == [
+        "| 1 | **fails** | a below b | Table IV | std |", "| 2 | holds | b below a |  | std |",
+        f"| 3 | not checked: {res[2].not_checked} | unknown metric |  | nope |", "| 4 | **fails** | no rows |  | std |"]
+    checks = md[md.index("| # | scenario | signal | means | statistic [95% CI] | needs | check |") + 2:]
+    assert checks == [f"| 1 | cs2_noisy | u | {A} 1.1, {B} 0.5 | 2.2 [2, 2.4] | < 1 | **fails** |",
+                      f"| 1 | cs2_noisy | v | {A} 1, {B} 0 | – | < 1 | **fails** |",
+                      f"| 2 | cs2_noisy | u | {B} 0.5, {A} 1.1 | 0.455 [0.417, 0.5] | < 1 | holds |",
+                      "| 4 | – | – | no data | – | – | **fails** |"]
+    one = markdown(exp.model_copy(update={"seeds": 1}), res).splitlines()[2]
+    assert one.startswith("Checked on one seed,") and "; one seed gives no interval." in one
+    assert manifest_entries(res)[2] == {"text": "unknown metric", "source": "", "holds": False,
+                                        "not_checked": res[2].not_checked}
+    assert manifest_entries(res)[0] == {"text": "a below b", "source": "Table IV", "holds": False}
 
 
 def test_malformed_claim_is_a_config_error(tmp_path):
