@@ -278,6 +278,39 @@ def test_shipx_low_frequency_vessel():
     np.testing.assert_allclose(bis_scale(ShipxSupplyLfParams())[[0, 3]], [82.8, 6362208.5 * 9.81])
 
 
+def test_shipx_matrices_are_models_md_2b_and_m_needs_a_positive_definite_symmetric_part():
+    """Model B's 3-DOF M from supply.mat with its sway-yaw pair (-4.468e7, -4.503e7) symmetrised, and the viscous
+    damping diag(1.30e5, 8.27e4, 1.83e8) (models.md 2b); M is refused when its symmetric part is singular, accepted
+    when only its skew part is large."""
+    from pydantic import ValidationError
+
+    from marinebench.models.supply import ShipxSupplyLfParams
+
+    v = SupplyVessel(ShipxSupplyLfParams())
+    m26 = (-4.468e7 - 4.503e7) / 2
+    np.testing.assert_array_equal(v.M, [[7.018e6, 0, 0], [0, 8.546e6, m26], [0, m26, 4.050e9]])
+    np.testing.assert_array_equal(v.D, np.diag([1.30e5, 8.27e4, 1.83e8]))
+    assert (v.params.L, v.params.m, v.params.g) == (82.8, 6362208.5, 9.81)
+    with pytest.raises(ValidationError, match="M must be positive definite"):
+        ShipxSupplyLfParams(M=((1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
+    ShipxSupplyLfParams(M=((1.0, 5.0, 0.0), (-5.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+
+
+def test_supply_plant_is_eq_41_written_out():
+    """eta' = R(psi) nu, M nu' + D nu = tau + R(psi)^T b + tau_d, and b' as given, per run (two headings far from 0)."""
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal((2, 9)) * [10, 10, 1, 1, 1, 0.1, 1e5, 1e5, 1e6]
+    x[:, 2] = [2.2, -1.0]
+    tau, tau_d, b_dot = (rng.standard_normal((2, 3)) * [1e5, 1e5, 1e6] for _ in range(3))
+    got = VESSEL.derivative(x, tau, tau_d, b_dot)
+    for i in range(2):
+        Rp, nu, b = _rot(x[i, 2]), x[i, 3:6], x[i, 6:9]
+        np.testing.assert_allclose(got[i, 0:3], Rp @ nu, rtol=1e-13)
+        np.testing.assert_allclose(got[i, 3:6], np.linalg.solve(VESSEL.M, tau[i] + Rp.T @ b + tau_d[i] - VESSEL.D @ nu),
+                                   rtol=1e-10)
+        np.testing.assert_array_equal(got[i, 6:9], b_dot[i])
+
+
 def test_shipx_mass_matrix_must_be_positive_definite(tmp_path):
     from typer.testing import CliRunner
 
