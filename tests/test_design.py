@@ -124,6 +124,23 @@ def test_verify_reports_poles_outside_the_requested_region():
     assert "fastest pole" in too_fast
 
 
+def test_verify_at_its_tolerances():
+    """The re-check's edges: a pole exactly at -delta + tol max(1, delta) or at |lambda| = rho (1 + 1e-4) passes, a
+    P with a zero eigenvalue does not."""
+    from dataclasses import replace
+
+    sol = rotational_design(1.2, 50.0)
+    delta, rho = 2.0, 10.0
+    edge = np.array([-delta + 1e-6 * delta, -rho * (1 + 1e-4)])
+    assert verify(replace(sol, poles=edge), delta, rho) == []
+    assert verify(replace(sol, poles=edge + [1e-9, 0.0]), delta, rho)[0].startswith("slowest pole")
+    assert verify(replace(sol, poles=edge - [0.0, 1e-6]), delta, rho)[0].startswith("fastest pole")
+    assert verify(replace(sol, poles=np.array([-5.0]), P=np.diag([1.0, 0.0, 2.0])), delta, rho) == [
+        "P is not positive definite"]
+    small = np.array([-0.5 + 1e-6, -0.6])  # below delta = 1 the slack is tol itself
+    assert verify(replace(sol, poles=small), 0.5, rho) == []
+
+
 def test_tuning_defaults_are_the_papers_noiseless_choices_and_the_documented_deviations():
     """Sec. V: k_omega = 1, k_n = 0 and r_max = -r_min = 0.8727 rad/s; rho = max(50, 5 delta), mu = 1e-3 and time
     scaling from delta = 50 are this package's documented deviations (README, manifest)."""
