@@ -5,7 +5,7 @@ import pytest
 from scipy.linalg import expm
 from scipy.signal import freqz, lfilter
 
-from marinebench.design.kalman import C_DP, dp_system, gain_at, kalman_gains
+from marinebench.design.kalman import C_DP, DpGains, dp_system, gain_at, kalman_gains
 from marinebench.environment.waves import dnv_gamma, jonswap
 from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
 from marinebench.observers.fto import fto_jump, rk4_maps
@@ -156,8 +156,7 @@ def test_dp_system_and_gain_at_written_out():
     np.testing.assert_allclose(dp_system(M, D, psi), np.block([[Z, Z, Rp], [Z, Z, Z], [Z, Minv @ Rp.T, -Minv @ D]]),
                                rtol=1e-12, atol=1e-20)
     K1, K2, K3 = (np.arange(9.0).reshape(3, 3) + k for k in (1, 10, 1e5))
-    g = kalman_gains(M, D, Q1, R1)
-    g = type(g)(K1, K2, K3, 0.0, np.empty(0))
+    g = DpGains(K1, K2, K3, 0.0, np.empty(0))
     np.testing.assert_allclose(gain_at(g, M, psi), np.vstack([K1, K2, Minv @ Rp.T @ K3]), rtol=1e-12, atol=1e-20)
 
 
