@@ -27,6 +27,8 @@ from typing import Literal
 import numpy as np
 from scipy.linalg import solve_continuous_are
 
+from marinebench.models.cybership2 import rotation
+
 C_DP = np.hstack([np.eye(3), np.zeros((3, 6))])
 
 
@@ -41,8 +43,7 @@ class DpGains:
 
 def dp_system(M: np.ndarray, D: np.ndarray, psi: float = 0.0) -> np.ndarray:
     """A(psi) of eq. (43) in force units, z = [eta, b, nu]."""
-    c, s = np.cos(psi), np.sin(psi)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    R = rotation(np.asarray(psi, dtype=float))
     Minv = np.linalg.inv(M)
     A = np.zeros((9, 9))
     A[0:3, 6:9] = R
@@ -53,8 +54,7 @@ def dp_system(M: np.ndarray, D: np.ndarray, psi: float = 0.0) -> np.ndarray:
 
 def gain_at(g: DpGains, M: np.ndarray, psi: float = 0.0) -> np.ndarray:
     """L(psi) of eq. (47), (9, 3)."""
-    c, s = np.cos(psi), np.sin(psi)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    R = rotation(np.asarray(psi, dtype=float))
     return np.vstack([g.K1, g.K2, np.linalg.solve(M, R.T @ g.K3)])
 
 
