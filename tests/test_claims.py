@@ -80,14 +80,16 @@ def test_near_paper_uses_the_tables_values_both_ways(tmp_path):
     assert not evaluate(exp, planted({(B, "u"): [0.04, 0.04]}))[0].holds
 
 
+def _in_cm(doc):
+    """The tiny table shows std/u in cm/s, and the paper's value for liu_eps0.2/u is 9 cm/s."""
+    doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
+    doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
+
+
 def test_near_paper_compares_in_the_tables_display_units(tmp_path):
     """A paper value given in the table's displayed unit (here std/u x 100) is compared with our mean x 100."""
-    def in_cm(doc):
-        doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
-        doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
-
     exp, _ = load_experiment(tiny_with_claims(tmp_path, [{"kind": "near_paper", "factor": 2, "signals": ["u"],
-                                                          "text": "near"}], in_cm))
+                                                          "text": "near"}], _in_cm))
     (res,) = evaluate(exp, planted({(B, "u"): [0.1, 0.1]}))
     assert res.holds and res.checks[0].statistic == pytest.approx(10.0 / 9.0)
     assert res.checks[0].means == {B: pytest.approx(0.1), "paper": pytest.approx(0.09)}
@@ -156,16 +158,12 @@ def test_checks_at_their_bounds_hold_and_their_intervals_are_of_the_claimed_stat
     """Equality holds for the <= checks (at_most at the value, within at the factor or at 1 + rtol, near_paper at
     either end of [1/factor, factor]); each interval is the bootstrap of the check's own statistic, here constant
     over seeds, so it is that value exactly; ``within`` with rtol compares the others with the first listed."""
-    def in_cm(doc):
-        doc["table"]["display"] = {"std/u": {"scale": 100.0, "unit": "cm/s"}}
-        doc["table"]["paper"]["values"]["liu_eps0.2"]["u"] = 9.0
-
     exp, _ = load_experiment(tiny_with_claims(tmp_path, [
         {"kind": "at_most", "a": A, "value": 3.0, "signals": ["u"], "text": "at most 3"},
         {"kind": "within", "variants": [A, B], "factor": 2.0, "signals": ["u"], "text": "within 2x"},
         {"kind": "within", "variants": [B, A], "rtol": 0.5, "signals": ["u"], "text": "within 50 % of B"},
         {"kind": "less", "a": A, "b": B, "factor": 0.6, "signals": ["u"], "text": "A is half of B"},
-        {"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "near"}], in_cm))
+        {"kind": "near_paper", "factor": 2, "signals": ["u"], "text": "near"}], _in_cm))
     res = evaluate(exp, planted({(A, "u"): [1.5, 3.0], (B, "u"): [3.0, 6.0]}))
     assert [r.holds for r in res] == [True, True, True, True, False]
     assert [(c.statistic, c.ci) for r in res[1:4] for c in r.checks] == [(2.0, (2.0, 2.0)), (0.5, (0.5, 0.5)),
