@@ -1,7 +1,9 @@
 """CyberShip II 3-DOF nonlinear manoeuvring model (Skjetne, Smogeli & Fossen 2004).
 
 Parameters are Table II of Bejarano et al. plus the optional cubic surge damping X_uuu of Skjetne
-Table 4 (``include_xuuu``). Equations (Bejarano eqs. (3)-(7)):
+Table 4 (``include_xuuu``). The cross-damping pairs follow the labels of Skjetne et al., MSS and
+shared/reference/models.md (Y_|r|v = -0.805, Y_|v|r = -0.845, N_|r|v = 0.13, N_|v|r = 0.08); Bejarano's
+Table II prints the same numbers with the subscripts of each pair swapped. Equations (Bejarano eqs. (3)-(7)):
 
     eta_dot = R(psi) nu
     M nu_dot = -C(nu) nu - D(nu) nu + tau_w + tau
@@ -89,8 +91,6 @@ class CyberShip2:
     """Batched CyberShip II plant. ``params`` are the true (simulated) coefficients."""
 
     params: CyberShip2Params
-
-    n_state = 6
 
     def __post_init__(self) -> None:
         M = inertia_matrix(self.params)
