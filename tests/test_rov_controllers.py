@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pydantic import ValidationError
 
 from marinebench.controllers.rise import TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
@@ -40,6 +41,44 @@ def test_damping_scale_multiplies_heave_and_yaw_damping():
     for scale in (1.0, 1.9):
         damping = -ROV.derivative(x, ZERO, ZERO, scale_damping=scale, net_buoyancy=0.0)[0, 2:] * ROV.inertia
         np.testing.assert_allclose(damping, scale * nominal, rtol=1e-12)
+
+
+def test_leonard_like_defaults_are_bluerov2_scaled_as_documented():
+    """models.md 2f: BlueROV2 (Wu 2018) magnitudes scaled to Leonard's size, added mass x2.4, damping x2.7 (linear
+    heave) and x2.85, inertia x6.5; Tijjani Table I's mass, +9 N floatability and 2.2 kgf thrusters."""
+    p = LeonardLikeParams()
+    scaled = {"added_mass_heave": 14.57 * 2.4, "inertia_yaw": 0.16 * 6.5, "added_inertia_yaw": 0.12 * 6.5,
+              "d_heave_lin": 5.18 * 2.7, "d_heave_quad": 36.99 * 2.85, "d_yaw_lin": 0.07 * 2.85, "d_yaw_quad": 1.55 * 2.85}
+    for key, value in scaled.items():
+        assert getattr(p, key) == pytest.approx(value, rel=0.01), key
+    assert (p.mass, p.net_buoyancy, p.n_vertical, p.n_horizontal, p.yaw_lever) == (28.0, 9.0, 2, 4, 0.25)
+    assert p.thrust_max == pytest.approx(2.2 * 9.81, rel=0.001)
+
+
+def test_rov_derivative_written_out_with_loads_off_unit_values():
+    """The module's equations at a state moving down and turning negative, with an external load, a changed
+    buoyancy and damping scale, on a vehicle with 3 horizontal thrusters at 0.3 m: z_dot = w, psi_dot = r,
+    (m + m_a) w_dot = tau_z - s (d_zl + d_zq |w|) w - b + f_z, (I + I_a) r_dot = tau_psi - s (d_rl + d_rq |r|) r + f_psi."""
+    p = LeonardLikeParams(n_horizontal=3, yaw_lever=0.3, d_heave_lin=12.0, d_heave_quad=90.0, d_yaw_lin=0.3,
+                          d_yaw_quad=3.0)
+    rov = LeonardLike(p)
+    w, r, tau, f, s, b = -0.2, -0.4, (5.0, -1.5), (-3.0, 0.8), 1.9, 18.0
+    x = np.array([[0.3, 1.2, w, r]])
+    xdot = rov.derivative(x, np.array([tau]), np.array([f]), scale_damping=s, net_buoyancy=b)[0]
+    w_dot = (tau[0] - s * (12.0 + 90.0 * abs(w)) * w - b + f[0]) / (28.0 + 35.0)
+    r_dot = (tau[1] - s * (0.3 + 3.0 * abs(r)) * r + f[1]) / (1.04 + 0.78)
+    np.testing.assert_allclose(xdot, [w, r, w_dot, r_dot], rtol=1e-12)
+
+
+def test_allocation_splits_each_dof_over_its_thrusters_and_saturates_each_group():
+    """Two vertical thrusters share tau_z; three horizontal ones at 0.3 m share tau_psi (not a unit lever arm);
+    each group clips at thrust_max, so the achieved tau is the command up to the group's limit."""
+    rov = LeonardLike(LeonardLikeParams(n_horizontal=3, yaw_lever=0.3))
+    np.testing.assert_allclose(rov.limits, [2 * 21.6, 3 * 0.3 * 21.6])
+    tau = np.array([[30.0, -9.0], [-60.0, 25.0]])  # first row inside both limits, second outside both
+    thrust, achieved = rov.allocate(tau)
+    np.testing.assert_allclose(thrust, [[15.0, -9.0 / 0.9], [-21.6, 21.6]], rtol=1e-12)
+    np.testing.assert_allclose(achieved, [[30.0, -9.0], [-43.2, 3 * 0.3 * 21.6]], rtol=1e-12)
 
 
 def test_srise_integral_terms_follow_eqs_16_17():
@@ -146,3 +185,25 @@ def test_rise_closed_loop_tracks_depth_and_yaw_on_the_nominal_model():
         if t > 15:
             worst = max(worst, abs(ref[0, 0] - x[0, 0]))
     assert worst < 0.01 and abs(np.rad2deg(x[0, 1]) - 60) < 1.0
+
+
+@pytest.mark.parametrize("key", ["mass", "inertia_yaw", "thrust_max", "yaw_lever"])
+def test_positive_rov_sizes_take_values_below_one_and_refuse_zero(key):
+    assert getattr(LeonardLikeParams(**{key: 0.5}), key) == 0.5
+    with pytest.raises(ValidationError, match=key):
+        LeonardLikeParams(**{key: 0.0})
+
+
+@pytest.mark.parametrize("key", ["added_mass_heave", "added_inertia_yaw", "d_heave_lin", "d_heave_quad", "d_yaw_lin",
+                                 "d_yaw_quad"])
+def test_added_mass_and_damping_may_be_zero_not_negative(key):
+    assert getattr(LeonardLikeParams(**{key: 0.0}), key) == 0.0
+    with pytest.raises(ValidationError, match=key):
+        LeonardLikeParams(**{key: -0.1})
+
+
+@pytest.mark.parametrize("key", ["n_vertical", "n_horizontal"])
+def test_thruster_groups_need_one_thruster(key):
+    assert getattr(LeonardLikeParams(**{key: 1}), key) == 1
+    with pytest.raises(ValidationError, match=key):
+        LeonardLikeParams(**{key: 0})
