@@ -11,6 +11,7 @@ from marinebench.design.cdo import (
     check,
     design_lmi,
     sample_noise_gain,
+    sample_noise_gains,
     sampled_flow,
     sampled_radius,
     verify_lmi,
@@ -83,8 +84,6 @@ def test_sample_noise_gain_stays_exact_for_stiff_gains_a_coarse_quadrature_gets_
     batched call gives each gain the value of the single one (docs/analysis/cdo_noise_frontier.py searches it)."""
     from scipy.linalg import expm, solve_discrete_lyapunov
 
-    from marinebench.design.cdo import sample_noise_gains, sampled_flow
-
     def midpoint(inj, h, quad):
         F = sampled_flow(inj, 0.0, False)
         q = np.zeros((4, 4))
@@ -149,6 +148,45 @@ def test_verify_lmi_refuses_a_slightly_violated_lmi_40():
     verify_lmi(np.array(d.k_star), d.P, d.S, 1e-3, 0.35)  # the solution itself passes
     with pytest.raises(DesignError, match="numpy check"):
         verify_lmi(np.array(d.k_star), d.P, d.S - 1e-3 * np.abs(d.S).max() * np.eye(3), 1e-3, 0.35)
+
+
+def test_minimal_trace_s_makes_lmi_40_and_the_decay_rate_active():
+    """Minimising trace(S) drives the solution onto the boundary of (40) at the lambda it was solved with, and
+    S's two directions the injection does not use down to the bound -S <= -lambda I that (40) itself puts on S.
+    The decay rate is active too: the slowest normalised pole is no faster than mu needs."""
+    d = design_lmi(0.35)
+    assert abs(d.lmi_max_eig) < 1e-6
+    assert np.linalg.eigvalsh(d.S)[:2] == pytest.approx([1e-3, 1e-3], rel=1e-3)
+
+
+@pytest.mark.parametrize(("lam", "mu", "holds"), [
+    (5e-4, 0.35, True),  # a weaker (40) than solved for
+    (1.0e-3 + 1e-5, 0.35, True),  # violated by 1e-5, inside the tolerance 1e-6 x max|P| (P ~ 140)
+    (1.5e-3, 0.35, False),  # violated by 5e-4, outside it
+    (1e-3, 0.30, True),
+    (1e-3, 0.35 + 1e-7, True),  # decay violated by ~3e-5, inside the tolerance
+    (1e-3, 0.35 + 1e-6, False),  # by ~3e-4: the solution certifies decay 0.35, not faster
+])
+def test_verify_lmi_holds_40_and_the_decay_rate_at_the_lambda_and_mu_it_is_given(lam, mu, holds):
+    """The re-check is of (40) + lambda I <= 0 and A_cl^T P + P A_cl + 2 mu P <= 0 at the values passed, each
+    within a tolerance relative to the size of P and S (the solution is tight at lambda = 1e-3, mu = 0.35)."""
+    d = design_lmi(0.35)
+    if holds:
+        verify_lmi(np.array(d.k_star), d.P, d.S, lam, mu)
+    else:
+        with pytest.raises(DesignError, match="numpy check"):
+            verify_lmi(np.array(d.k_star), d.P, d.S, lam, mu)
+
+
+def test_check_refuses_equality_in_39_and_a_zero_injection():
+    """(39) is strict: K_w = theta K*_1 is refused, the message giving both sides. With no injection the error
+    map is exp(A h), whose eigenvalues are all exactly 1: refused as not converging, and its noise gain is inf."""
+    with pytest.raises(DesignError, match=r"\(39\) needs K_w < theta K\*_1 \(34.146 >= 34.1\)"):
+        check((1.4, 3.0, 1.0), 24.39, 24.39 * 1.4, 0.05, "depth")
+    with pytest.raises(DesignError, match=r"CDO yaw: .* spectral radius 1.000 >= 1 at h = 0.04 s"):
+        check((0.0, 0.0, 0.0), 24.39, -1.0, 0.04, "yaw")
+    radius, gain = sample_noise_gains(np.zeros(3), 0.05, predictor=False)
+    assert radius[0] == 1.0 and gain[0] == np.inf
 
 
 def write(tmp_path, doc, name="x.yaml"):

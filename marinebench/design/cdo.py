@@ -45,7 +45,7 @@ class CdoDesign:
 
 
 @lru_cache(maxsize=32)
-def design_lmi(mu: float = 1.0, lam: float = 1e-3) -> CdoDesign:
+def design_lmi(mu: float, lam: float = 1e-3) -> CdoDesign:
     """Solve LMI (40) with the decay rate ``mu`` and minimal trace(S) (CLARABEL), then verify in numpy."""
     import cvxpy as cp  # here, not at the top: see design/lmi.py
 
