@@ -86,6 +86,8 @@ def test_sweep_claims_on_known_curves():
     res = sweep_claims(synthetic(), spec)
     assert [r.holds for r in res] == [True, False, True, False, True, False, True]
     assert res[0].checks[0].statistic == pytest.approx(0.625) and res[2].checks[0].statistic == pytest.approx(1.0)
+    assert res[0].checks[0].ci == pytest.approx((0.625, 0.625))  # the ratio of means is 0.625 in every resample
+    assert res[0].checks[0].means == pytest.approx({"k=0.75": 6.5625, "k=0": 10.5})
     assert res[4].checks[0].statistic == pytest.approx(2.0) and [c.where for c in res[6].checks] == ["b"]
     only_a = synthetic()[lambda d: d["gnss"] == "a"]
     # with one group swept, the groups claims and the claim about group b alone are not checked
@@ -122,3 +124,44 @@ def test_a_groups_claim_needs_every_value():
         {"kind": "groups", "param": "k", "above": "b", "below": "a", "text": "b above a"}]})
     (res,) = sweep_claims(m, spec)
     assert not res.holds and res.checks[0].statistic == pytest.approx(0.5)
+    assert res.checks[0].means == pytest.approx({"b at k=1": 2.625, "a": 5.25})  # where the lowest ratio is
+
+
+def test_trend_claims_take_the_range_with_its_ends_and_need_three_points():
+    """J = (1 + |log10 delta|) (1 + 0.1 seed), raised by 30 % at delta = 1: over [0.1, 1] (5 grid points, both
+    ends included) the mean curve's ranks are 5 4 3 1 2, Spearman rho = -0.9, short of a claimed -0.95; over
+    [1, 10] ranks 2 1 3 4 5, rho = +0.9. A range holding 3 grid points gets a rho; 2 points get none, and fail."""
+    m = synthetic()
+    m = m[m["param"] == "delta"].copy()
+    m["value"] = (1 + np.abs(np.log10(m["param_value"]))) * (1 + 0.1 * m["seed"])
+    m.loc[np.isclose(m["param_value"], 1.0), "value"] *= 1.3
+    claims = [
+        {"kind": "trend", "param": "delta", "range": (0.1, 1.0), "decreasing": True, "min_rho": 0.95, "text": "falls"},
+        {"kind": "trend", "param": "delta", "range": (1.0, 10.0), "min_rho": 0.5, "text": "grows"},
+        {"kind": "trend", "param": "delta", "range": (0.1, 0.4), "decreasing": True, "text": "3 points"},
+        {"kind": "trend", "param": "delta", "range": (0.1, 0.2), "decreasing": True, "text": "2 points"},
+    ]
+    spec = SweepSpec.model_validate({**SPEC.model_dump(), "claims": claims, "params": {
+        "delta": {"key": "delta", "range": (0.1, 10), "spacing": "log", "trend": (0.1, 0.2)}}})
+    falls, grows, three, two = (r.checks[0] for r in sweep_claims(m, spec))
+    assert falls.statistic == pytest.approx(-0.9) and not falls.holds and falls.needs == "< -0.95 (Spearman ρ)"
+    assert grows.statistic == pytest.approx(0.9) and grows.holds and grows.needs == "> +0.5 (Spearman ρ)"
+    assert three.statistic == pytest.approx(-1.0) and three.holds
+    assert np.isnan(two.statistic) and not two.holds
+    assert row(sweep_table(m, "J_tot", spec), "delta", "a", "z", "[0.1, 0.2]")[4:] == ["2", "–"]
+
+
+def test_sweep_table_says_how_many_seeds_names_its_group_column_and_shows_diverged_points():
+    """The preamble counts the seeds; the group column is headed `group` for a sweep without named world groups
+    and `gnss` (metrics.csv's column) with them; a curve whose every run diverged shows '–' and counts them,
+    also at its probes, in its trend and between groups; a metric with no values says so."""
+    m = synthetic(seeds=(0, 1, 2))
+    m.loc[m["param"] == "delta", "status"] = "diverged"
+    t = sweep_table(m, "J_tot", SPEC)
+    assert "3 runs per point (seeds 0..2)" in t and "| param | group | signal | points |" in t
+    assert row(t, "delta", "a", "z", "9")[4:] == ["–", "–", "–", "–", "27"]
+    assert row(t, "delta", "z", "b / a")[3:] == ["–", "–", "–", "–"] and row(t, "k", "z", "b / a")[3] == "2"
+    assert row(t, "delta", "a", "z", "10")[4:] == ["–", "–"] and row(t, "delta", "a", "z", "[1, 10]")[4:] == ["5", "–"]
+    named = SPEC.model_copy(update={"groups": {"a": {}, "b": {}}})
+    assert "| param | gnss | signal | points |" in sweep_table(m, "J_tot", named)
+    assert sweep_table(m, "rmse", SPEC) == "## Sweep: rmse vs each parameter\n\nNo values of metric 'rmse'.\n"

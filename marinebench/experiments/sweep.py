@@ -216,6 +216,9 @@ def _at(curve: pd.DataFrame, value: float, log: bool) -> np.ndarray:
 
 
 def _fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
+    """A mean with its interval; '–' where every run diverged."""
+    if not np.isfinite(m):
+        return "–"
     f = (lambda x: f"{100 * x:+.1f} %") if pct else (lambda x: f"{x:.4g}")
     return f(m) if not np.isfinite(lo) else f"{f(m)} [{f(lo)}, {f(hi)}]"
 
@@ -279,7 +282,8 @@ def _trend_section(curves: Curves, spec: SweepSpec, group: str) -> list[str]:
             continue
         x = c.index.to_numpy(dtype=float)
         inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
-        rho = f"{spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic:+.2f}" if inside.sum() > 2 else "–"
+        rho = spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic if inside.sum() > 2 else np.nan
+        rho = f"{rho:+.2f}" if np.isfinite(rho) else "–"  # too few points, or every run diverged
         rows.append(f"| {p} | {g} | {sig} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
     if not rows:
         return []
@@ -299,8 +303,9 @@ def _groups_section(curves: Curves) -> list[str]:
         for g in groups[1:]:
             if (p, g, sig) in curves and (p, groups[0], sig) in curves:
                 r = curves[p, g, sig].mean(axis=1) / curves[p, groups[0], sig].mean(axis=1)
-                lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | "
-                             f"{r.idxmax():.4g} |")
+                cells = ("– | – | – | –" if r.isna().all()  # every run of one group diverged
+                         else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g}")
+                lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {cells} |")
     return lines
 
 
