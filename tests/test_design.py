@@ -23,6 +23,21 @@ def max_eig(X):
     return np.max(np.linalg.eigvalsh((X + X.T) / 2))
 
 
+def test_structure_matrices_are_the_papers():
+    """The rotational chain (psi, r, sigma_r) measured in psi with the disturbance on sigma_r, and eq. (29):
+    A0_p the 2x2-block integrator chain, S_Tp = blockdiag(S_p^T, 0, 0) with S_p = [[0, -1], [1, 0]], C_p = [I 0 0],
+    B_omega,p = [0 0 I]^T."""
+    np.testing.assert_array_equal(A_PSI, [[0, 1, 0], [0, 0, 1], [0, 0, 0]])
+    np.testing.assert_array_equal(C_PSI, [[1, 0, 0]])
+    np.testing.assert_array_equal(BW_PSI, [[0], [0], [1]])
+    I2, Z2 = np.eye(2), np.zeros((2, 2))
+    np.testing.assert_array_equal(A0_P, np.block([[Z2, I2, Z2], [Z2, Z2, I2], [Z2, Z2, Z2]]))
+    np.testing.assert_array_equal(S_TP[:2, :2], [[0, 1], [-1, 0]])
+    assert not S_TP[2:].any() and not S_TP[:, 2:].any()
+    np.testing.assert_array_equal(C_P, np.hstack([I2, Z2, Z2]))
+    np.testing.assert_array_equal(BW_P, np.vstack([Z2, Z2, I2]))
+
+
 @pytest.mark.parametrize("delta,rho", [(0.05, 50.0), (2.2, 50.0), (300.0, 1500.0)])
 def test_rotational_lmis_hold(delta, rho):
     sol = rotational_design(delta, rho)
@@ -39,7 +54,8 @@ def test_rotational_lmis_hold(delta, rho):
     assert np.abs(poles).max() <= rho * (1 + 1e-6)
 
 
-@pytest.mark.parametrize("delta,kw,kn,rho", [(0.05, 1, 0, 50.0), (1.2, 1, 1, 50.0), (400.0, 1, 0, 2000.0), (0.0, 100, 1, 50.0)])
+@pytest.mark.parametrize("delta,kw,kn,rho", [(0.05, 1, 0, 50.0), (1.2, 1, 1, 50.0), (400.0, 1, 0, 2000.0), (0.0, 100, 1, 50.0),
+                                             (1.2, 2.5, 0.4, 50.0)])
 def test_positional_lmis_hold(delta, kw, kn, rho):
     r_max = 0.8727
     sol = positional_design(delta, kw, kn, -r_max, r_max, rho)
@@ -54,6 +70,11 @@ def test_positional_lmis_hold(delta, kw, kn, rho):
     assert np.linalg.norm(upsilon, 2) <= sol.beta * (1 + 1e-5)  # (28e) <=> ||Upsilon|| <= beta
     for r in np.linspace(-r_max, r_max, 7):  # the vertex LMIs cover the whole yaw-rate interval
         assert np.linalg.eigvals(A0_P + r * S_TP + sol.gain @ C_P).real.max() < -delta * (1 - 1e-6)
+    # sol.poles: the closed loop's 6 poles at r_min, r = 0 and r_max, in that order
+    expected = [np.linalg.eigvals(A0_P + r * S_TP + sol.gain @ C_P) for r in (-r_max, 0.0, r_max)]
+    assert sol.poles.shape == (18,)
+    for got, want in zip(np.split(sol.poles, 3), expected):
+        np.testing.assert_allclose(np.sort_complex(got), np.sort_complex(want), rtol=1e-9, atol=1e-9)
 
 
 @pytest.fixture
