@@ -54,6 +54,22 @@ def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range(
     narrow, _ = load_experiment(CFG, sets=["sweep.params.delta.range=[0.15, 2.0]", "sweep.params.delta.probes=[0.15]",
                                            "sweep.params.delta.trend=null", "sweep.claims=[]"])
     assert tuning(narrow, "delta") is None and tuning(narrow, "k") == 0.7
+    # the range's ends are inside it
+    ends, _ = load_experiment(CFG, sets=["sweep.params.delta.range=[2.5, 10.0]", "sweep.params.delta.probes=[2.5]",
+                                         "sweep.params.delta.trend=null", "sweep.params.k.range=[0.0, 0.7]",
+                                         "sweep.params.k.probes=[0.0]", "sweep.claims=[]"])
+    assert (tuning(ends, "delta"), tuning(ends, "k")) == (2.5, 0.7)
+
+
+def test_heat_map_cells_are_centred_on_the_grid_values():
+    """Cell edges: midpoints between grid values (geometric midpoints for log spacing), the end cells as wide
+    again as their half-cell inside; one value gets a cell of width 2 around it (in the log for log spacing)."""
+    from marinebench.experiments.grid import _edges
+
+    np.testing.assert_allclose(_edges(np.array([0.0, 1.0, 3.0]), log=False), [-0.5, 0.5, 2.0, 4.0])
+    np.testing.assert_allclose(_edges(np.array([1.0, 10.0, 1000.0]), log=True), 10.0 ** np.array([-0.5, 0.5, 2.0, 4.0]))
+    np.testing.assert_allclose(_edges(np.array([5.0]), log=False), [4.0, 6.0])
+    np.testing.assert_allclose(_edges(np.array([10.0]), log=True), [10.0 / np.e, 10.0 * np.e])
 
 
 def synthetic() -> pd.DataFrame:
@@ -78,6 +94,9 @@ def test_grid_table_on_a_known_surface():
     spec = SweepSpec(variant="x", metric="J", params={"a": SweepParam(key="a", range=(0, 2)),
                                                        "b": SweepParam(key="b", range=(0, 3))})
     table = grid_table(m, "J", spec)
+    assert "Mean over 2 seeds; rows a, columns b." in table and "| group | signal | lowest | at a | at b |" in table
+    one = grid_table(m[m["seed"] == 0], "J", spec.model_copy(update={"groups": {"lo": {}, "hi": {}}}))
+    assert "One run per point (seed index 0); rows a, columns b." in one and "| gnss | signal | lowest |" in one
     # lowest at a = 0, b = 0 (2.0, seed 0 alone); highest at a = 2, b = 3; the largest ratios along each axis are
     # those through that corner: 6.3 / 2 along a (column b = 0), 5.25 / 2 along b (row a = 0)
     assert "| default | z | 2 | 0 | 0 | 15.75 | 3.15× | 2.62× |" in table
