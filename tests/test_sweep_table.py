@@ -149,6 +149,9 @@ def test_trend_claims_take_the_range_with_its_ends_and_need_three_points():
     assert three.statistic == pytest.approx(-1.0) and three.holds
     assert np.isnan(two.statistic) and not two.holds
     assert row(sweep_table(m, "J_tot", spec), "delta", "a", "z", "[0.1, 0.2]")[4:] == ["2", "–"]
+    spec3 = SweepSpec.model_validate({**spec.model_dump(), "params": {
+        "delta": {"key": "delta", "range": (0.1, 10), "spacing": "log", "trend": (0.1, 0.4)}}})
+    assert row(sweep_table(m, "J_tot", spec3), "delta", "a", "z", "[0.1, 0.4]")[4:] == ["3", "-1.00"]
 
 
 def test_sweep_table_says_how_many_seeds_names_its_group_column_and_shows_diverged_points():
