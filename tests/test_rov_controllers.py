@@ -187,23 +187,13 @@ def test_rise_closed_loop_tracks_depth_and_yaw_on_the_nominal_model():
     assert worst < 0.01 and abs(np.rad2deg(x[0, 1]) - 60) < 1.0
 
 
-@pytest.mark.parametrize("key", ["mass", "inertia_yaw", "thrust_max", "yaw_lever"])
-def test_positive_rov_sizes_take_values_below_one_and_refuse_zero(key):
-    assert getattr(LeonardLikeParams(**{key: 0.5}), key) == 0.5
+@pytest.mark.parametrize(("key", "ok", "bad"), [
+    *[(k, 0.5, 0.0) for k in ("mass", "inertia_yaw", "thrust_max", "yaw_lever")],  # any positive size, not zero
+    *[(k, 0.0, -0.1) for k in ("added_mass_heave", "added_inertia_yaw", "d_heave_lin", "d_heave_quad", "d_yaw_lin",
+                               "d_yaw_quad")],  # added mass and damping may be zero, not negative
+    *[(k, 1, 0) for k in ("n_vertical", "n_horizontal")],  # a thruster group needs one thruster
+])
+def test_rov_parameter_bounds(key, ok, bad):
+    assert getattr(LeonardLikeParams(**{key: ok}), key) == ok
     with pytest.raises(ValidationError, match=key):
-        LeonardLikeParams(**{key: 0.0})
-
-
-@pytest.mark.parametrize("key", ["added_mass_heave", "added_inertia_yaw", "d_heave_lin", "d_heave_quad", "d_yaw_lin",
-                                 "d_yaw_quad"])
-def test_added_mass_and_damping_may_be_zero_not_negative(key):
-    assert getattr(LeonardLikeParams(**{key: 0.0}), key) == 0.0
-    with pytest.raises(ValidationError, match=key):
-        LeonardLikeParams(**{key: -0.1})
-
-
-@pytest.mark.parametrize("key", ["n_vertical", "n_horizontal"])
-def test_thruster_groups_need_one_thruster(key):
-    assert getattr(LeonardLikeParams(**{key: 1}), key) == 1
-    with pytest.raises(ValidationError, match=key):
-        LeonardLikeParams(**{key: 0})
+        LeonardLikeParams(**{key: bad})
