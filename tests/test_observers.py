@@ -31,13 +31,22 @@ def steady_world(seeds: int = 1) -> OpenLoopASV:
     return OpenLoopASV(sc, 0, np.zeros(seeds, dtype=int))
 
 
-def test_observer_outputs_named_signals():
-    world = steady_world()
-    for obs in (LiuEsoObserver([LiuEsoTuning()], world.plant.Minv),
-                BejaranoObserver([BejaranoTuning()], world.plant.Minv)):
-        out = obs.outputs(obs.init())
-        assert set(out) == set(SIGNALS) == set(obs.signals)
-        assert all(v.shape == (1,) for v in out.values())
+@pytest.mark.parametrize("observer, tuning, columns", [
+    (LiuEsoObserver, LiuEsoTuning, [3, 4, 5, 6, 7, 8]),  # [eta_hat, nu_hat, sigma_hat]
+    (BejaranoObserver, BejaranoTuning, [5, 6, 1, 7, 8, 2]),  # [psi, r, sigma_r, x, y, u, v, sigma_u, sigma_v]
+])
+def test_observer_starts_at_zero_and_outputs_its_named_state_columns(observer, tuning, columns):
+    """Estimates start at 0 (Bejarano s.V), one 9-state row per run; u, v, r, sigma_u, sigma_v, sigma_r are read
+    from the columns of each observer's state layout."""
+    obs = observer([tuning(), tuning()], steady_world().plant.Minv)
+    x0 = obs.init()
+    assert obs.n_state == 9
+    np.testing.assert_array_equal(x0, np.zeros((2, 9)))
+    xhat = np.arange(18.0).reshape(2, 9)
+    out = obs.outputs(xhat)
+    assert list(out) == SIGNALS == list(obs.signals)
+    for name, col in zip(SIGNALS, columns):
+        np.testing.assert_array_equal(out[name], xhat[:, col])
 
 
 def test_bejarano_derivative_is_eqs_13_14_with_eq_26_per_run():
