@@ -52,7 +52,7 @@ class Push(BaseModel):
 
 class Payload(BaseModel):
     """Scenario S2-C1: a payload of ``weight_fraction`` of the ROV's weight hangs on a thread; it rests on
-    the floor (no load) while the ROV is deeper than ``floor_depth``."""
+    the floor (no load) while the ROV is at or below ``floor_depth``."""
 
     model_config = STRICT
     weight_fraction: float = Field(0.04, gt=0)

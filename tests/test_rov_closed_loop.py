@@ -7,7 +7,7 @@ import yaml
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
-from marinebench.rov_scenario import RovScenario, RovWorld, min_jerk
+from marinebench.rov_scenario import Payload, RandomLoad, RovScenario, RovSensors, RovWorld, min_jerk
 from marinebench.sim.recorders import ControlEnergy
 
 from .conftest import ROOT
@@ -50,6 +50,81 @@ def test_payload_hangs_until_the_floor_and_pushes_act_in_their_window():
     f = w.loads(1.0, x)
     assert f[0, 0] == pytest.approx(0.04 * 28 * 9.81) and f[1, 0] == 0.0  # resting on the floor below 0.25 m
     assert w.loads(2.2, x)[1, 0] == pytest.approx(70.0) and w.loads(2.6, x)[1, 0] == 0.0
+    at_floor = np.array([[0.25, 0, 0, 0], [0.2499, 0, 0, 0]])
+    assert w.loads(1.0, at_floor)[:, 0].tolist() == [0.0, pytest.approx(0.04 * 28 * 9.81)]  # rests from floor_depth on
+    assert w.loads(2.0, x)[1, 0] == 70.0 and w.loads(2.5, x)[1, 0] == 0.0  # [t_start, t_start + duration)
+
+
+def test_rov_defaults_are_table_i_and_the_documented_assumptions():
+    """Sensor periods of Tijjani Table I (pressure sensor 50 ms, IMU 40 ms); S2-C1's payload of 4 % of the weight
+    that lies on the pool floor from about 0.25 m (Sec. V); the assumed noise, rate sources, control period, step
+    and unscaled plant of docs/tijjani.md; no loads unless a scenario adds them."""
+    s = RovSensors()
+    assert (s.depth_period, s.attitude_period) == (0.05, 0.04)
+    assert (s.depth_noise, s.yaw_noise_deg, s.gyro_noise_dps) == (0.00024, 0.01, 0.05)
+    assert (s.depth_rate, s.yaw_rate) == ("difference", "difference")
+    assert (Payload().weight_fraction, Payload().floor_depth) == (0.04, 0.25)
+    load = RandomLoad(std=(3.0, 0.2))
+    assert (load.time_constant, load.period) == (2.0, 0.1)
+    sc = RovScenario(name="w", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10)
+    assert (sc.control_period, sc.dt, sc.damping_scale, sc.buoyancy_scale) == (0.01, 0.002, 1.0, 1.0)
+    assert sc.estimate_offset == (0.0, 0.0) and sc.payload is None and sc.pushes == [] and sc.random_load is None
+    assert sc.sample_periods() == (("depth", 0.05), ("yaw", 0.04))
+
+
+def test_world_starts_at_the_first_waypoints_with_the_observers_offset():
+    """The plant starts at rest on the references' first values (yaw in degrees in the file); the CDO and the EO
+    start at that pose plus ``estimate_offset`` [m, deg] with zero rate and disturbance estimates, the CDO's
+    predictor and the held samples at the pose itself."""
+    from marinebench.controllers.spec import ControllerSpec
+
+    sc = RovScenario(name="w", depth_ref=[(0, 0.15), (5, 0.3)], yaw_ref_deg=[(0, 30.0)], horizon=10,
+                     estimate_offset=(0.02, -3.0))
+    w = RovWorld(sc, 0, np.zeros(2, dtype=int), [(ControllerSpec(kind="rise"), [0, 1])])
+    pose = [0.15, np.deg2rad(30.0)]
+    np.testing.assert_allclose(w.x0[:, :4], [[*pose, 0, 0]] * 2, rtol=1e-15)
+    cdo, pred = w.cdo_view(w.x0)
+    start = [[0.17, 0, 0], [np.deg2rad(27.0), 0, 0]]
+    np.testing.assert_allclose(cdo, [start] * 2, rtol=1e-12)
+    np.testing.assert_allclose(w.eo_view(w.x0), [start] * 2, rtol=1e-12)
+    np.testing.assert_allclose(pred, [pose] * 2, rtol=1e-15)
+    np.testing.assert_allclose(w.y, [pose] * 2, rtol=1e-15)
+    np.testing.assert_allclose(w.at_sample[:3], [[pose] * 2] * 3, rtol=1e-15)
+
+
+def test_the_plant_sees_the_scenarios_damping_and_buoyancy_scales():
+    """S2-C2 changes the plant only: RovWorld's plant derivative is the model's with damping x damping_scale and
+    net buoyancy x buoyancy_scale (the observers keep their nominal inertia)."""
+    sc_kw = {"damping_scale": 1.9, "buoyancy_scale": 2.5, "vessel": {"net_buoyancy": 7.0}}
+    w = world_of(1, **sc_kw)
+    x = w.x0.copy()
+    x[0, :4] = [0.2, 0.3, 0.1, -0.2]
+    w.tau = np.array([[4.0, -0.5]])
+    got = w.derivative(0.0, x)[0][0, :4]
+    want = w.plant.derivative(x[:, :4], w.tau, w.loads(0.0, x), 1.9, 7.0 * 2.5)[0]
+    np.testing.assert_allclose(got, want, rtol=1e-14)
+    assert not np.allclose(got, w.plant.derivative(x[:, :4], w.tau, w.loads(0.0, x), 1.9, 7.0 / 2.5)[0])
+
+
+def test_cdo_and_eo_designs_report_their_gains_and_per_sample_figures():
+    """``cdo_design``: K*, its source and, only for the LMI design, the decay rate, LMI (40)'s residual and the
+    poles (theta times the normalised ones); per DOF the per-sample radius and noise gain. ``eo_design``: a/eps^i and
+    a triple pole at -1/eps for a = (3, 3, 1)."""
+    from marinebench.observers.cdo import CdoParams, EoParams
+
+    sc = RovScenario(name="w", depth_ref=[(0, 0.0)], yaw_ref_deg=[(0, 0.0)], horizon=10)
+    lmi = sc.cdo_design()
+    assert lmi["mode"] == "lmi" and lmi["lmi_decay"] == 0.35 and lmi["lmi40_max_eig"] < 0
+    assert max(lmi["poles"]) <= -0.35 * 24.39 + 1e-3
+    binomial = sc.cdo_design(CdoParams(k_star="binomial", theta=10.0))
+    assert binomial["k_star"] == [3.0, 3.0, 1.0] and binomial["mode"] == "binomial" and binomial["theta"] == 10.0
+    assert not {"lmi_decay", "lmi40_max_eig", "poles"} & set(binomial)
+    assert {"sampled_radius_depth", "sampled_radius_yaw", "noise_gain_depth", "noise_gain_yaw"} <= set(binomial)
+    assert sc.cdo_design(CdoParams(k_star=(2.0, 1.5, 0.3)))["mode"] == "given"
+    eo = sc.eo_design(EoParams(eps=0.05))
+    assert eo["gain"] == [60.0, 1200.0, 8000.0]
+    np.testing.assert_allclose(eo["poles"], [-20.0] * 3, atol=0.05)  # a triple root, to its numerical splitting
+    assert {"noise_gain_depth", "noise_gain_yaw"} <= set(eo)
 
 
 def test_control_energy_starts_when_the_reference_is_reached():
