@@ -7,7 +7,7 @@ import yaml
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
-from marinebench.rov_scenario import Payload, RandomLoad, RovScenario, RovSensors, RovWorld, min_jerk
+from marinebench.rov_scenario import Payload, Push, RandomLoad, RovScenario, RovSensors, RovWorld, min_jerk
 from marinebench.sim.recorders import ControlEnergy
 
 from .conftest import ROOT
@@ -34,6 +34,38 @@ def test_min_jerk_reference():
     assert min_jerk(-1, pts) == (0.0, 0.0) and min_jerk(12, pts) == (1.0, 0.0)
     v, r = min_jerk(2.5, pts)
     assert v == pytest.approx(0.5) and r == pytest.approx(30 * 0.25 * 0.25 / 5)
+
+
+def test_min_jerk_holds_before_the_first_waypoint_and_between_moves():
+    """Waypoints from t = 2 s: the first value is held until then; a waypoint that repeats its predecessor's value
+    holds it; a later move starts from where the previous one ended (s = 1/4 of a 4 s move from 0.8 down to 0.2)."""
+    pts = [(2.0, 0.5), (4.0, 0.8), (6.0, 0.8), (10.0, 0.2)]
+    assert min_jerk(1.0, pts) == (0.5, 0.0) and min_jerk(2.0, pts) == (0.5, 0.0)
+    assert min_jerk(5.0, pts) == (0.8, 0.0)
+    v, r = min_jerk(7.0, pts)
+    s = 0.25
+    assert v == pytest.approx(0.8 - 0.6 * s**3 * (10 - 15 * s + 6 * s**2))
+    assert r == pytest.approx(-0.6 * 30 * s**2 * (1 - s) ** 2 / 4)
+
+
+@pytest.mark.parametrize("model, ok, bad", [
+    (lambda **k: Push(**{"t_start": 1.0, "duration": 0.5, "force": (10.0, 0.0), **k}),
+     [{"t_start": 0.0}, {"t_start": 0.4}], [{"t_start": -0.1}, {"duration": 0.0}]),
+    (Payload, [{"weight_fraction": 0.5, "floor_depth": 0.1}], [{"weight_fraction": 0.0}, {"floor_depth": 0.0}]),
+    (lambda **k: RandomLoad(std=(1.0, 0.1), **k), [{"time_constant": 0.5, "period": 0.02}],
+     [{"time_constant": 0.0}, {"period": 0.0}]),
+    (RovSensors, [{"depth_noise": 0.0, "yaw_noise_deg": 0.0, "gyro_noise_dps": 0.0, "depth_period": 0.02}],
+     [{"depth_period": 0.0}, {"attitude_period": 0.0}, {"depth_noise": -1e-4}, {"yaw_rate": "imu"}]),
+])
+def test_rov_scenario_parts_refuse_out_of_range_values(model, ok, bad):
+    """Times and periods start at or after 0 and are positive; noise may be switched off but not negative."""
+    from pydantic import ValidationError
+
+    for settings in ok:
+        model(**settings)
+    for settings in bad:
+        with pytest.raises(ValidationError):
+            model(**settings)
 
 
 def test_rise_tracks_s1_reference_in_closed_loop(tmp_path):
