@@ -157,6 +157,9 @@ def test_cdo_and_eo_designs_report_their_gains_and_per_sample_figures():
     assert eo["gain"] == [60.0, 1200.0, 8000.0]
     np.testing.assert_allclose(eo["poles"], [-20.0] * 3, atol=0.05)  # a triple root, to its numerical splitting
     assert {"noise_gain_depth", "noise_gain_yaw"} <= set(eo)
+    # the defaults' per-sample figures at 50 ms quoted in docs/tijjani.md: the EO's held samples pass less noise
+    assert sc.eo_design()["noise_gain_depth"] == pytest.approx(1.061, abs=1e-3)
+    assert (lmi["sampled_radius_depth"], lmi["noise_gain_depth"]) == pytest.approx((0.778, 1.351), abs=1e-3)
 
 
 def test_control_energy_starts_when_the_reference_is_reached():
@@ -263,3 +266,16 @@ def test_gyro_rate_is_the_true_rate_plus_the_gyros_noise():
             errors[source].append(w.ydot[0, 1] - 0.3)
     assert np.std(errors["gyro"]) == pytest.approx(np.deg2rad(2.0), rel=0.15)
     assert np.all(np.array(errors["true"]) == 0.0)
+
+
+def test_a_differenced_rate_starts_at_zero_at_the_first_sample():
+    """``difference``: no rate before there are two samples, whatever the first sample's noise; then the
+    difference of the last two samples over the sensor's period."""
+    w = world_of(1, sensors={"depth_noise": 0.01, "yaw_noise_deg": 1.0})
+    x = w.x0.copy()
+    w.begin_step(0, 0.0, x)
+    assert np.all(w.y != 0.0) and np.all(w.ydot == 0.0)
+    first = w.y.copy()
+    every = w.every[0]  # the depth sensor's steps; the IMU samples at other steps
+    w.begin_step(every, every * w.sc.dt, x)
+    assert w.ydot[0, 0] == pytest.approx((w.y[0, 0] - first[0, 0]) / 0.05, rel=1e-12) and w.ydot[0, 0] != 0.0
