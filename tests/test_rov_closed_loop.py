@@ -252,6 +252,21 @@ def test_observation_error_at_the_samples_is_each_runs_own_observers():
     np.testing.assert_array_equal(truth["depth_meas"], [0.0, 0.0])
 
 
+def test_a_controller_without_an_observer_is_scored_at_the_samples_on_the_reference():
+    """``*_meas`` of a run seen through no observer: the reference at the sample instant against the sample, so
+    a moving reference enters it (depth from 0.1 m to 0.3 m over 1 s, sampled at 0.5 s)."""
+    from marinebench.controllers.spec import ControllerSpec
+
+    sc = RovScenario(name="w", depth_ref=[(0, 0.1), (1, 0.3)], yaw_ref_deg=[(0, 0.0)], horizon=10,
+                     sensors={"depth_noise": 0.0, "yaw_noise_deg": 0.0})
+    w = RovWorld(sc, 0, np.zeros(1, dtype=int), [(ControllerSpec(kind="rise"), [0])])
+    x = w.x0.copy()
+    k = round(0.5 / sc.dt)
+    w.begin_step(k, 0.5, x)
+    assert w.estimates(0.5, x)["depth_meas"][0] == pytest.approx(min_jerk(0.5, sc.depth_ref)[0]) == 0.2
+    assert w.truth(0.5, x)["depth_meas"][0] == 0.1  # the held sample of the plant, still at its start
+
+
 def test_gyro_rate_is_the_true_rate_plus_the_gyros_noise():
     """``yaw_rate: gyro`` feeds the true rate plus white noise of ``gyro_noise_dps``; ``true`` the rate itself."""
     errors = {}
