@@ -148,6 +148,9 @@ def test_cdo_and_eo_designs_report_their_gains_and_per_sample_figures():
     lmi = sc.cdo_design()
     assert lmi["mode"] == "lmi" and lmi["lmi_decay"] == 0.35 and lmi["lmi40_max_eig"] < 0
     assert max(lmi["poles"]) <= -0.35 * 24.39 + 1e-3
+    # the real parts of the roots of s^3 + g1 s^2 + g2 s + g3, g = Delta_theta K* (the error dynamics of eq. (38))
+    roots = np.roots([1.0, *CdoParams().injection()])
+    np.testing.assert_allclose(lmi["poles"], np.sort(roots.real), atol=2e-3)
     binomial = sc.cdo_design(CdoParams(k_star="binomial", theta=10.0))
     assert binomial["k_star"] == [3.0, 3.0, 1.0] and binomial["mode"] == "binomial" and binomial["theta"] == 10.0
     assert not {"lmi_decay", "lmi40_max_eig", "poles"} & set(binomial)
