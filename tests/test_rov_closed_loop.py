@@ -255,6 +255,24 @@ def test_observation_error_at_the_samples_is_each_runs_own_observers():
     np.testing.assert_array_equal(truth["depth_meas"], [0.0, 0.0])
 
 
+def test_truth_and_estimates_name_the_state_columns_of_each_runs_observer():
+    """State [z, psi, w, r | CDO (depth, yaw) x [eta, eta_dot, delta*] | predictors | EO (depth, yaw) x 3]: truth is
+    the plant's pose and rates; the estimate of ``depth``/``yaw`` and their rates is the reference (no observer),
+    the CDO's or the EO's, per run; ``*_cdo``/``*_eo`` are both observers' outputs in every run."""
+    from marinebench.observers.cdo import RovObserverSpec
+
+    w = world_of(3, [None, RovObserverSpec(kind="cdo"), RovObserverSpec(kind="eo")])
+    x = np.tile(np.arange(18.0) + 0.5, (3, 1))
+    truth, est = w.truth(0.0, x), w.estimates(0.0, x)
+    for name, col in {"depth": 0, "yaw": 1, "depth_rate": 2, "yaw_rate": 3}.items():
+        np.testing.assert_array_equal(truth[name], x[:, col])
+    for name, cols in {"depth": (4, 12), "yaw": (7, 15), "depth_rate": (5, 13), "yaw_rate": (8, 16)}.items():
+        assert est[name].tolist() == [0.0, *(x[0, c] for c in cols)]  # the references hold 0 at rest
+    for name, col in {"depth_cdo": 4, "yaw_cdo": 7, "depth_eo": 12, "yaw_eo": 15}.items():
+        np.testing.assert_array_equal(est[name], x[:, col])
+        np.testing.assert_array_equal(truth[name], x[:, 0 if "depth" in name else 1])
+
+
 def test_a_controller_without_an_observer_is_scored_at_the_samples_on_the_reference():
     """``*_meas`` of a run seen through no observer: the reference at the sample instant against the sample, so
     a moving reference enters it (depth from 0.1 m to 0.3 m over 1 s, sampled at 0.5 s)."""
