@@ -133,6 +133,41 @@ def test_white_heading_noise_option():
     assert np.abs(psi.mean(axis=0)).max() < 0.05 * np.deg2rad(0.3)
 
 
+def test_dp_defaults_are_torben_table_i_and_the_documented_choices():
+    """Torben Table I (differential GNSS 0.1 m, heading 0.3 deg, 1/c = 1100 s, Ts = 1 s, notch w0 = 1, wc = 0.5
+    rad/s) and Sec. IV-B (Hs = 2 m, Tp = 6.3 s, step 0.05 s); our choices where it is silent (README, models.md 2b):
+    gamma 3.3, 40 equal bins up to 3 w_p, the 130 deg RAO magnitudes rolled off as (w_p/w)^2, the GNSS error held
+    between samples and sigma as its stationary std, the heading error Gauss-Markov, first-order-hold feed; the
+    vessel at rest at the origin without events or bias drift."""
+    from marinebench.dp_scenario import DpInitial, DpSensors, Waves
+
+    s = DpSensors()
+    assert (s.gnss_sigma, s.heading_sigma_deg, s.gm_time_constant, s.ts) == (0.1, 0.3, 1100.0, 1.0)
+    assert (s.notch, s.notch_w0, s.notch_wc) == (True, 1.0, 0.5)
+    assert (s.heading_noise, s.sigma_is, s.hold, s.between_samples, s.continuous_feed) == (
+        "gauss_markov", "stationary", "noise", "hold", "foh")
+    w = Waves()
+    assert (w.hs, w.tp, w.gamma, w.n_components, w.w_max_factor) == (2.0, 6.3, 3.3, 40, 3.0)
+    assert (w.rao, w.rao_rolloff) == ((0.26, 0.21, 0.0148), 2.0)
+    assert DpInitial().model_dump() == {"eta": (0.0, 0.0, 0.0), "nu": (0.0, 0.0, 0.0), "bias": (0.0, 0.0, 0.0)}
+    sc = DpScenario(name="d", horizon=10)
+    assert (sc.dt, sc.bias_rate, sc.events, sc.design_vessel) == (0.05, (0.0, 0.0, 0.0), [], None)
+    assert sc.waves == Waves() and sc.sensors == DpSensors() and sc.model is sc.vessel
+
+
+def test_a_slow_load_may_rise_and_fall_without_holding():
+    """2 rise <= duration: with equality the load is one raised-cosine bump, its peak at mid-duration."""
+    from marinebench.dp_scenario import SlowLoad
+
+    bump = {"kind": "slow", "t_start": 10.0, "duration": 20.0, "rise": 10.0, "force": (1e5, 0.0, 0.0)}
+    SlowLoad(**bump)
+    with pytest.raises(ValidationError, match="2 \\* rise must not exceed duration"):
+        SlowLoad(**{**bump, "rise": 10.01})
+    w = DpWorld(DpScenario(name="d", horizon=40, events=[bump], waves=None), 0, np.zeros(1, dtype=int))
+    assert w.events(20.0)[0] == pytest.approx(1e5) and w.events(15.0)[0] == pytest.approx(0.5e5)
+    assert w.events(9.99)[0] == 0.0 and w.events(30.0)[0] == pytest.approx(0.0, abs=1e-6)
+
+
 def test_norm_integral_matches_numpy():
     rec = NormIntegral(["a", "psi"], np.array([2.0, 1.0]), {"psi"}, 1.0, 3.0, 0.5)
     rng = np.random.default_rng(0)
