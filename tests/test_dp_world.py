@@ -32,6 +32,48 @@ def test_events_happen_at_configured_times():
     assert np.isclose(w.events(22.5)[0], quarter) and np.isclose(w.events(57.5)[0], quarter)
 
 
+def test_truth_bias_is_the_drifting_bias_plus_the_events_load_in_ned():
+    """KPI truth (module docstring): b_true = b + R(psi) tau_d, tau_d the body-frame events at t; the pose and
+    velocity are the plant state's."""
+    sc = DpScenario(name="e", horizon=100, waves=None, events=[
+        {"kind": "impulse", "t_start": 5, "duration": 10, "force": [2e5, -3e5, 4e6]}])
+    w = DpWorld(sc, 0, np.zeros(1, dtype=int))
+    x = np.array([[1.0, 2.0, 0.6, 0.1, -0.2, 0.01, 1e4, -2e4, 3e5]])
+    c, s_ = np.cos(0.6), np.sin(0.6)
+    truth = w.truth(6.0, x)
+    want = {"b_x": 1e4 + c * 2e5 + s_ * 3e5, "b_y": -2e4 + s_ * 2e5 - c * 3e5, "b_n": 3e5 + 4e6}
+    for name, value in want.items():
+        assert truth[name][0] == pytest.approx(value, rel=1e-12)
+    assert [truth[n][0] for n in ("x", "y", "psi", "u", "v", "r")] == [1.0, 2.0, 0.6, 0.1, -0.2, 0.01]
+    assert [w.truth(20.0, x)[n][0] for n in ("b_x", "b_y", "b_n")] == [1e4, -2e4, 3e5]  # after the impulse
+
+
+@pytest.mark.parametrize("model, base, ok, bad", [
+    ("Impulse", {"t_start": 1.0, "duration": 2.0, "force": (1.0, 0.0, 0.0)}, [{"t_start": 0.0}, {"t_start": 0.5}],
+     [{"t_start": -1.0}, {"duration": 0.0}]),
+    ("SlowLoad", {"t_start": 1.0, "duration": 2.0, "rise": 0.5, "force": (1.0, 0.0, 0.0)}, [{"t_start": 0.0}],
+     [{"t_start": -1.0}, {"duration": 0.0}, {"rise": 0.0}]),
+    ("Waves", {}, [{"hs": 0.0, "n_components": 1, "w_max_factor": 1.01, "rao_rolloff": 0.0}, {"n_components": 1000},
+                   {"gamma": None, "tp": 0.5}],
+     [{"hs": -0.1}, {"tp": 0.0}, {"gamma": 0.0}, {"n_components": 0}, {"n_components": 1001}, {"w_max_factor": 1.0},
+      {"rao_rolloff": -1.0}]),
+    ("DpSensors", {}, [{"gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "ts": 0.5, "gm_time_constant": 0.5}],
+     [{"gnss_sigma": -0.1}, {"heading_sigma_deg": -0.1}, {"gm_time_constant": 0.0}, {"ts": 0.0}, {"notch_w0": 0.0},
+      {"notch_wc": 0.0}, {"hold": "sample"}]),
+])
+def test_dp_scenario_parts_refuse_out_of_range_values(model, base, ok, bad):
+    """Event times from 0 and positive durations; a sea may be calm (hs = 0) and has 1 to 1000 components up to
+    above its peak; noise may be off, never negative; time constants, sample times and notch frequencies positive."""
+    import marinebench.dp_scenario as dp
+
+    cls = getattr(dp, model)
+    for settings in ok:
+        cls(**{**base, **settings})
+    for settings in bad:
+        with pytest.raises(ValidationError):
+            cls(**{**base, **settings})
+
+
 def measured(world: DpWorld, n_steps: int, pose=None) -> np.ndarray:
     """The measurement y after ``begin_step`` at each of the first ``n_steps`` steps, ``(n_steps, B, 3)``; the plant
     state is ``pose(t)`` (default: at rest at the origin)."""
