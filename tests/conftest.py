@@ -27,6 +27,18 @@ def md_row(table: str, *cells: str) -> list[str]:
     raise AssertionError(f"no row {cells} in\n{table}")
 
 
+def accepts_and_refuses(model, base: dict, ok: list[dict], bad: list[dict]) -> None:
+    """``model(**base, **settings)`` builds for every settings dict of ``ok`` and, for every one of ``bad``, raises a
+    ValidationError that names the setting's key."""
+    from pydantic import ValidationError
+
+    for settings in ok:
+        model(**{**base, **settings})
+    for settings in bad:
+        with pytest.raises(ValidationError, match=next(iter(settings))):
+            model(**{**base, **settings})
+
+
 def write_tiny(directory: Path, horizon: float = 4.0) -> Path:
     """A short noisy experiment with two variants, two seeds, a table and two figures."""
     doc = {

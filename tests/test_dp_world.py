@@ -13,7 +13,7 @@ from marinebench.loading import load_experiment
 from marinebench.observers.dp import ResettingTuning
 from marinebench.sim.recorders import NormIntegral
 
-from .conftest import ROOT
+from .conftest import ROOT, accepts_and_refuses
 
 CONFIG = ROOT / "configs" / "torben_fig1.yaml"  # plant ShipX LF (model B), observers on model A
 MATCHED = ROOT / "configs" / "torben_fig1_matched.yaml"  # plant = observers' model (model A)
@@ -66,12 +66,7 @@ def test_dp_scenario_parts_refuse_out_of_range_values(model, base, ok, bad):
     above its peak; noise may be off, never negative; time constants, sample times and notch frequencies positive."""
     import marinebench.dp_scenario as dp
 
-    cls = getattr(dp, model)
-    for settings in ok:
-        cls(**{**base, **settings})
-    for settings in bad:
-        with pytest.raises(ValidationError):
-            cls(**{**base, **settings})
+    accepts_and_refuses(getattr(dp, model), base, ok, bad)
 
 
 def measured(world: DpWorld, n_steps: int, pose=None) -> np.ndarray:

@@ -10,7 +10,7 @@ from marinebench.loading import load_experiment
 from marinebench.rov_scenario import Payload, Push, RandomLoad, RovScenario, RovSensors, RovWorld, min_jerk
 from marinebench.sim.recorders import ControlEnergy
 
-from .conftest import ROOT
+from .conftest import ROOT, accepts_and_refuses
 
 
 def experiment(tmp_path, variants, *sets, metrics=None):
@@ -48,24 +48,17 @@ def test_min_jerk_holds_before_the_first_waypoint_and_between_moves():
     assert r == pytest.approx(-0.6 * 30 * s**2 * (1 - s) ** 2 / 4)
 
 
-@pytest.mark.parametrize("model, ok, bad", [
-    (lambda **k: Push(**{"t_start": 1.0, "duration": 0.5, "force": (10.0, 0.0), **k}),
-     [{"t_start": 0.0}, {"t_start": 0.4}], [{"t_start": -0.1}, {"duration": 0.0}]),
-    (Payload, [{"weight_fraction": 0.5, "floor_depth": 0.1}], [{"weight_fraction": 0.0}, {"floor_depth": 0.0}]),
-    (lambda **k: RandomLoad(std=(1.0, 0.1), **k), [{"time_constant": 0.5, "period": 0.02}],
-     [{"time_constant": 0.0}, {"period": 0.0}]),
-    (RovSensors, [{"depth_noise": 0.0, "yaw_noise_deg": 0.0, "gyro_noise_dps": 0.0, "depth_period": 0.02}],
+@pytest.mark.parametrize("model, base, ok, bad", [
+    (Push, {"t_start": 1.0, "duration": 0.5, "force": (10.0, 0.0)}, [{"t_start": 0.0}, {"t_start": 0.4}],
+     [{"t_start": -0.1}, {"duration": 0.0}]),
+    (Payload, {}, [{"weight_fraction": 0.5, "floor_depth": 0.1}], [{"weight_fraction": 0.0}, {"floor_depth": 0.0}]),
+    (RandomLoad, {"std": (1.0, 0.1)}, [{"time_constant": 0.5, "period": 0.02}], [{"time_constant": 0.0}, {"period": 0.0}]),
+    (RovSensors, {}, [{"depth_noise": 0.0, "yaw_noise_deg": 0.0, "gyro_noise_dps": 0.0, "depth_period": 0.02}],
      [{"depth_period": 0.0}, {"attitude_period": 0.0}, {"depth_noise": -1e-4}, {"yaw_rate": "imu"}]),
 ])
-def test_rov_scenario_parts_refuse_out_of_range_values(model, ok, bad):
+def test_rov_scenario_parts_refuse_out_of_range_values(model, base, ok, bad):
     """Times and periods start at or after 0 and are positive; noise may be switched off but not negative."""
-    from pydantic import ValidationError
-
-    for settings in ok:
-        model(**settings)
-    for settings in bad:
-        with pytest.raises(ValidationError):
-            model(**settings)
+    accepts_and_refuses(model, base, ok, bad)
 
 
 def test_rise_tracks_s1_reference_in_closed_loop(tmp_path):
