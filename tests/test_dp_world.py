@@ -112,6 +112,18 @@ def test_gauss_markov_between_samples_hold_or_linear():
     np.testing.assert_allclose(lin[10], 0.5 * (hold[0] + hold[20]))  # halfway between samples
 
 
+@pytest.mark.parametrize("mode", ["hold", "linear"])
+def test_gauss_markov_errors_cover_the_horizon_at_a_faster_sample_time(mode):
+    """Ts = 0.5 s over a 5 s horizon: a new eq. (48) sample every 10 steps up to the last step, held (or
+    interpolated) in between."""
+    sc = DpScenario(name="g", horizon=5, waves=None, sensors={"gnss_sigma": 1.0, "notch": False, "ts": 0.5,
+                                                              "between_samples": mode})
+    ys = measured(DpWorld(sc, 3, np.arange(2)), 101)
+    assert np.all(np.diff(ys[::10, :, 0], axis=0) != 0)  # every sample instant draws anew, to t = 5 s
+    if mode == "hold":
+        assert np.ptp(ys[91:100], axis=0).max() == 0
+
+
 def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_peak():
     """eta_WF = RAO sum_k A_k cos(w_k t + eps_k): w_k the midpoints of n equal bins up to w_max_factor * w_p,
     A_k = sqrt(2 S(w_k) dw) (the spectrum's variance in each bin), times (w_p / w_k)^rolloff above the peak w_p."""
@@ -132,6 +144,11 @@ def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_pe
     _, dnv = components(0.0, gamma=None)  # no gamma: DNV's rule, 1.87 for Hs 2 m, Tp 6.3 s
     assert dnv_gamma(2.0, 6.3) == pytest.approx(1.87, abs=0.01)
     np.testing.assert_allclose(dnv, component_amplitudes(omega, np.diff(edges), 2.0, 6.3, dnv_gamma(2.0, 6.3)))
+    # amplitudes scale with Hs, down to a small sea; Hs = 0 is a calm sea with no wave motion
+    small = DpWorld(DpScenario(name="w", horizon=10, waves={"hs": 0.5, "rao_rolloff": 0.0}), 5, np.arange(2))
+    np.testing.assert_allclose(small.wave[1], flat * 0.25, rtol=1e-12)
+    calm = DpWorld(DpScenario(name="w", horizon=10, waves={"hs": 0.0}), 5, np.arange(2))
+    assert calm.wave is None and not calm.wave_motion(3.0).any()
 
 
 def test_notch_runs_at_the_measurement_rate_with_held_measurements():
@@ -203,6 +220,7 @@ def test_a_slow_load_may_rise_and_fall_without_holding():
     w = DpWorld(DpScenario(name="d", horizon=40, events=[bump], waves=None), 0, np.zeros(1, dtype=int))
     assert w.events(20.0)[0] == pytest.approx(1e5) and w.events(15.0)[0] == pytest.approx(0.5e5)
     assert w.events(9.99)[0] == 0.0 and w.events(30.0)[0] == pytest.approx(0.0, abs=1e-6)
+    assert w.events(10.5)[0] == pytest.approx(1e5 * 0.5 * (1 - np.cos(np.pi * 0.05)))  # rising from its start
 
 
 def test_norm_integral_matches_numpy():
