@@ -87,11 +87,12 @@ def test_stationary_gauss_markov_reading():
     assert abs(w.gm[:, 0].std() / 1.5 - 1) < 0.05  # starts in the stationary distribution
     # and stays in it: eq. (48)'s driving std sigma*sqrt(1 - exp(-2 c Ts)) keeps the variance (c Ts = 0.5 here, so
     # a wrong driving std shows within a few samples)
-    fast = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"gm_time_constant": 2.0})}), 0,
-                   np.arange(4000))
-    measured(fast, 201)  # ten samples
-    assert abs(fast.gm[:, :2].std() / 1.5 - 1) < 0.05
-    assert abs(fast.gm[:, 2].std() / np.deg2rad(0.3) - 1) < 0.05  # the heading's own sigma (Table I: 0.3 deg)
+    for ts, tc in ((1.0, 2.0), (0.5, 1.0)):  # c Ts = 0.5 both times; Ts enters the driving std too
+        fast = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"gm_time_constant": tc, "ts": ts})}),
+                       0, np.arange(4000))
+        measured(fast, round(10 * ts / 0.05) + 1)  # ten samples
+        assert abs(fast.gm[:, :2].std() / 1.5 - 1) < 0.05
+        assert abs(fast.gm[:, 2].std() / np.deg2rad(0.3) - 1) < 0.05  # the heading's own sigma (Table I: 0.3 deg)
     lit = DpWorld(sc.model_copy(update={"sensors": sc.sensors.model_copy(update={"sigma_is": "driving"})}), 0, np.arange(3))
     assert np.allclose(lit.sigma[:, 0], 1.5) and np.allclose(lit.gm, 0)
 
@@ -149,6 +150,17 @@ def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_pe
     np.testing.assert_allclose(small.wave[1], flat * 0.25, rtol=1e-12)
     calm = DpWorld(DpScenario(name="w", horizon=10, waves={"hs": 0.0}), 5, np.arange(2))
     assert calm.wave is None and not calm.wave_motion(3.0).any()
+
+
+def test_wave_phases_are_uniform_so_the_sea_has_zero_mean_and_the_spectrums_variance():
+    """Over many seeds the surge wave motion at a fixed time has mean 0 and variance RAO^2 sum A_k^2 / 2 (phases
+    uniform on [0, 2 pi))."""
+    w = DpWorld(DpScenario(name="w", horizon=10), 2, np.arange(4000))
+    _, amp, *_ = w.wave
+    x = w.wave_motion(7.3)[:, 0]
+    std = 0.26 * np.sqrt((amp**2).sum() / 2)
+    assert abs(x.mean()) < 4 * std / np.sqrt(4000)
+    assert x.std() == pytest.approx(std, rel=0.05)
 
 
 def test_notch_runs_at_the_measurement_rate_with_held_measurements():
