@@ -160,6 +160,23 @@ def test_dp_system_and_gain_at_written_out():
     np.testing.assert_allclose(gain_at(g, M, psi), np.vstack([K1, K2, Minv @ Rp.T @ K3]), rtol=1e-12, atol=1e-20)
 
 
+def test_resetting_observer_defaults_are_torben_table_i_and_the_documented_choices():
+    """Table I: delta = 2.5 s, k = 0.7, eps = [0.5 m, 0.5 m, 0.05 rad], Q1 = diag(50, 50, 10), R1 = diag(15, 15, 1);
+    our readings (docs/torben.md, README): Q2 = 1e8 Q1, bias in 10 kN with the yaw bias per vessel length, the
+    predictor discretisation, the condition check on in bis coordinates with c_max = 1e10. The NPO shares Q1, R1."""
+    from marinebench.observers.dp import NpoTuning, ResettingTuning
+
+    t = ResettingTuning()
+    assert (t.delta, t.k, t.eps, t.eps_scale) == (2.5, 0.7, (0.5, 0.5, 0.05), 1.0)
+    assert (t.q, t.r, t.q2_scale) == ((50.0, 50.0, 10.0), (15.0, 15.0, 1.0), 1e8)
+    assert (t.bias_units, t.moment_arm, t.discretization) == ("10kN", "L", "predictor")
+    assert (t.check_cond, t.c_max, t.jump_coordinates) == (True, 1e10, "bis")
+    npo = NpoTuning()
+    assert (npo.q, npo.r, npo.bias_units, npo.moment_arm) == (t.q, t.r, t.bias_units, t.moment_arm)
+    assert npo.design_key(76.2) == ((50.0, 50.0, 10.0), (15.0, 15.0, 1.0), 1.0, "10kN", 76.2, "predictor")
+    assert ResettingTuning(moment_arm=1.0).design_key(76.2)[2:5] == (1e8, "10kN", 1.0)
+
+
 def test_kalman_l1_l2():
     g1 = kalman_gains(VESSEL.M, VESSEL.D, Q1, R1)
     g2 = kalman_gains(VESSEL.M, VESSEL.D, 1e7 * Q1, R1)

@@ -431,6 +431,10 @@ def test_table_caption_says_what_each_error_is():
     assert "from the first time the tracking error is within 0.01 (depth), 0.0175 (yaw)" in _window(tracking.part("S1"), "int")
     mixed = observed.model_copy(update={"variants": [*observed.variants, tracking.variants[0]]})
     assert "for controllers without an observer: reference − actual" in _window(mixed, "rmse")
+    band = "recovery: largest time after a push until the vehicle stays within 0.01 (depth), 0.0175 (yaw) of "
+    assert _window(tracking.part("S3"), "recovery") == band + "the same run without the pushes [s]"
+    against_ref, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["metrics.2.against=reference"])
+    assert _window(against_ref.part("S3"), "recovery") == band + "the reference [s]"
 
 
 def test_a_one_scenario_table_states_the_papers_units_like_a_study_table():
