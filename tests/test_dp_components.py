@@ -12,6 +12,8 @@ from marinebench.observers.fto import fto_jump, rk4_maps
 from marinebench.sensors.gauss_markov import gm_step, stationary_std
 from marinebench.sensors.notch import Biquad, tustin_notch
 
+from .conftest import accepts_and_refuses
+
 VESSEL = SupplyVessel(SupplyVesselParams())
 Q1, R1 = np.diag([50.0, 50.0, 10.0]), np.diag([15.0, 15.0, 1.0])
 
@@ -175,6 +177,9 @@ def test_resetting_observer_defaults_are_torben_table_i_and_the_documented_choic
     assert (npo.q, npo.r, npo.bias_units, npo.moment_arm) == (t.q, t.r, t.bias_units, t.moment_arm)
     assert npo.design_key(76.2) == ((50.0, 50.0, 10.0), (15.0, 15.0, 1.0), 1.0, "10kN", 76.2, "predictor")
     assert ResettingTuning(moment_arm=1.0).design_key(76.2)[2:5] == (1e8, "10kN", 1.0)
+    # k in [0, 1] (k = 0 is the NPO, 1 jumps to z*), c_max >= 1 (cond >= 1 always), positive delta and eps scale
+    accepts_and_refuses(ResettingTuning, {}, [{"k": 0.0}, {"k": 1.0}, {"c_max": 1.0}, {"delta": 0.01}],
+                        [{"k": -0.1}, {"k": 1.01}, {"c_max": 0.99}, {"delta": 0.0}, {"eps_scale": 0.0}, {"q2_scale": 0.0}])
 
 
 def test_kalman_l1_l2():
