@@ -313,6 +313,19 @@ def test_instability_at_delta_equal_dt_without_cond_check():
     assert on["resetting", "cond_max"] > 1e20
 
 
+def test_resetting_variants_in_bis_and_raw_coordinates_share_a_batch():
+    """``jump_coordinates`` per run: two resetting variants, bis and raw, in one batch give what each gives in a
+    batch of its own kind (the condition number is the coordinates' own: ~1e2 bis-scaled, far larger raw)."""
+    resetting = ["variants.0.observer.kind=resetting_fto", "scenario.horizon=60"]
+    mixed = short(*resetting, "variants.1.observer.jump_coordinates=raw")
+    bis = short(*resetting)
+    raw = short(*resetting, "variants.0.observer.jump_coordinates=raw", "variants.1.observer.jump_coordinates=raw")
+    for metric in ("J_tot", "log10_cond_mean", "n_jumps"):
+        assert mixed["npo", metric] == pytest.approx(bis["npo", metric], rel=1e-12)
+        assert mixed["resetting", metric] == pytest.approx(raw["resetting", metric], rel=1e-12)
+    assert mixed["npo", "log10_cond_mean"] < 3 < mixed["resetting", "log10_cond_mean"]
+
+
 def test_bis_scaled_condition_number_and_check():
     m = short("variants.1.observer.delta=0.05", "scenario.horizon=60")
     assert m["resetting", "cond_max"] > 1e10 and m["resetting", "n_jumps"] == 0  # c_max = 1e10 blocks every jump

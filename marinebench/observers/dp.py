@@ -161,10 +161,8 @@ class DpObserver:
         self.eps = np.array([np.multiply(getattr(t, "eps", (np.inf,) * 3), getattr(t, "eps_scale", 1.0)) for t in tunings])
         self.c_max = np.array([getattr(t, "c_max", 1e10) for t in tunings])
         self.check = np.array([getattr(t, "check_cond", True) for t in tunings])
-        raw = {getattr(t, "jump_coordinates", "bis") == "raw" for t in tunings}
-        if len(raw) > 1:
-            raise ValueError("one batch of DP observers must share jump_coordinates")
-        self.jump_scale = np.ones(9) if raw.pop() else scale
+        raw = np.array([getattr(t, "jump_coordinates", "bis") == "raw" for t in tunings])
+        self.jump_scale = np.where(raw[:, None], 1.0, scale)  # (B, 9): each run's jump coordinates
         self.counter = np.zeros(B, dtype=int)
         self.n_resets = np.zeros(B, dtype=int)
         self.n_jumps = np.zeros(B, dtype=int)
@@ -251,7 +249,7 @@ class DpObserver:
         innov = y - z1[:, 0:3]
         innov[:, 2] = wrap_angle(innov[:, 2])
         z1p, jumped, cond = fto_jump(z1, z2, S[ends, 0, :, :9], S[ends, 1, :, :9], innov, self.k[ends],
-                                     self.eps[ends], self.c_max[ends], self.jump_scale, check=self.check[ends])
+                                     self.eps[ends], self.c_max[ends], self.jump_scale[ends], check=self.check[ends])
         S[ends, :, :, :9] = np.eye(9)
         S[ends, 0, :, 9] = z1p
         S[ends, 1, :, 9] = z1p

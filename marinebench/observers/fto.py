@@ -48,15 +48,15 @@ def fto_jump(
     """Jump map for a batch of window ends. Returns ``(z1_plus, jumped, cond)``.
 
     Shapes: z (B, n), phi (B, n, n), innovation and eps (B, p), k (B,); ``c_max`` and ``check`` a scalar or
-    one per run. ``cond`` is evaluated for every window end (the observer's diagnostics); ``z*`` is solved only
-    for the runs that jump, which at a sweep's window ends are few.
+    one per run; ``scale`` (n,) or one row per run (B, n). ``cond`` is evaluated for every window end (the
+    observer's diagnostics); ``z*`` is solved only for the runs that jump, which at a sweep's window ends are few.
     """
     n = z1.shape[1]
-    sc = scale[None, :]
+    sc = np.broadcast_to(scale, z1.shape)  # (B, n): each run's coordinates
     with np.errstate(all="ignore"):
         # everything in the scaled coordinates z_s = S^-1 z, where Phi and X are far better conditioned
-        p1 = phi1 * scale[None, None, :] / scale[None, :, None]
-        p2 = phi2 * scale[None, None, :] / scale[None, :, None]
+        p1 = phi1 * sc[:, None, :] / sc[:, :, None]
+        p2 = phi2 * sc[:, None, :] / sc[:, :, None]
         Ys = np.linalg.solve(np.swapaxes(p1, 1, 2), np.swapaxes(p2, 1, 2)).swapaxes(1, 2)  # Ys p1 = p2
         Xs = np.eye(n) - Ys
         cond = np.linalg.cond(Xs)
@@ -69,8 +69,8 @@ def fto_jump(
             j = j[nonsingular]
         z_plus = z1.copy()
         if j.size:
-            rhs = z2[j] / sc - np.einsum("bij,bj->bi", Ys[j], z1[j] / sc)
-            z_star = np.linalg.solve(Xs[j], rhs[..., None])[..., 0] * sc
+            rhs = z2[j] / sc[j] - np.einsum("bij,bj->bi", Ys[j], z1[j] / sc[j])
+            z_star = np.linalg.solve(Xs[j], rhs[..., None])[..., 0] * sc[j]
             kj = k[j, None]
             z_plus[j] = kj * z_star + (1 - kj) * z1[j]
     return z_plus, jumped, cond
