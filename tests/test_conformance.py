@@ -6,10 +6,11 @@ largest error late in the run is a small fraction of its largest error early on.
 observer kind without a case here fails the first test.
 """
 
+import numpy as np
 import pytest
 import yaml
 
-from marinebench.experiments.runner import run, scenario_kinds_for
+from marinebench.experiments.runner import build_groups, plant_of, run, scenario_kinds_for
 from marinebench.loading import load_experiment, load_scenario, preflight
 from marinebench.registry import kinds
 
@@ -99,3 +100,17 @@ def test_observer_converges_on_a_noiseless_plant_of_its_own_model(tmp_path, case
     assert len(values) >= 2
     for (variant, signal), row in values.iterrows():
         assert row["late"] <= 1e-3 * row["early"] + 1e-9, (variant, signal, row["early"], row["late"])
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c[1] is not CLEAN_ROV],
+                         ids=[i for c, i in zip(CASES, IDS) if c[1] is not CLEAN_ROV])
+def test_built_in_observers_keep_the_protocol_custom_ones_are_checked_against(tmp_path, case):
+    """observers/custom.py's ``check_built`` on each batched built-in observer (three runs of each tuning):
+    max_rate finite and >= 0, init() of shape (B, n_state), every declared signal as (B,). (The ROV's CDO and EO
+    are part of its world, not batched observers.)"""
+    from marinebench.observers.custom import check_built
+
+    exp = experiment(tmp_path, case)
+    run_variant = np.repeat(np.arange(len(exp.variants)), 3)
+    (group,) = build_groups(exp, run_variant, plant_of(exp.scenario))
+    check_built(group.observer, len(run_variant))
