@@ -49,6 +49,25 @@ def test_batched_equals_reference_with_model_mismatch():
     assert jumps > 0
 
 
+def test_batched_equals_reference_in_raw_jump_coordinates():
+    """``jump_coordinates: raw`` in a batch beside a bis-scaled run: the reference applies cond and c_max in the
+    same coordinates as the batch, run by run. At delta = 2.5 s cond is ~1e2 bis-scaled and ~1e20 in raw SI, so
+    with the default c_max = 1e10 the raw run never jumps; with c_max raised it jumps like the bis run."""
+    base, _ = load_experiment(MATCHED, ["scenario.horizon=80"])
+    _, resetting = base.variants
+    cases = {"bis": ("bis", {}), "raw": ("raw", {}), "raw_unchecked": ("raw", {"c_max": 1e21})}
+    variants = [resetting.model_copy(update={"name": name, "observer": resetting.observer.model_copy(
+        update={"k": 1.0, "jump_coordinates": coords, **settings})}) for name, (coords, settings) in cases.items()]
+    exp = base.model_copy(update={"variants": variants})
+    batched = run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
+    for i, v in enumerate(variants):
+        ref = reference_run(exp, i)
+        assert np.isclose(batched[v.name, "J_tot"], ref["J_tot"], rtol=1e-9, atol=0), v.name
+        assert batched[v.name, "n_jumps"] == ref["n_jumps"], v.name
+    assert batched["bis", "n_jumps"] > 0 and batched["raw_unchecked", "n_jumps"] > 0 and batched["raw", "n_jumps"] == 0
+    assert batched["raw", "log10_cond_mean"] > 15 and batched["bis", "log10_cond_mean"] < 3
+
+
 def test_batched_equals_reference_where_the_condition_check_blocks_every_jump():
     """delta = one step: cond(I - Phi2 Phi1^-1) ~ 9e22 > c_max at every window, so neither engine jumps and the
     resetting observer's J is the NPO's; with a window of two steps the jumps stay blocked too."""

@@ -37,7 +37,9 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     n_window = max(1, round(getattr(t_obs, "delta", 2.5) / sc.dt))
     eps = np.multiply(getattr(t_obs, "eps", (np.inf,) * 3), getattr(t_obs, "eps_scale", 1.0))
     c_max, check = getattr(t_obs, "c_max", 1e10), getattr(t_obs, "check_cond", True)
-    S, S_obs = bis_scale(sc.vessel), bis_scale(sc.model)  # the KPI's units (true vessel), the jump's coordinates
+    S = bis_scale(sc.vessel)  # the KPI's units (true vessel)
+    # the jump's coordinates: the design model's bis units, or raw SI (jump_coordinates)
+    S_obs = np.ones(9) if getattr(t_obs, "jump_coordinates", "bis") == "raw" else bis_scale(sc.model)
     z = [np.zeros(9), np.zeros(9)]
     phi = [np.eye(9), np.eye(9)]
     windows = [(m.label, *m.window(sc.horizon)) for m in exp.metrics if m.kind == "j_tot"]
@@ -79,7 +81,7 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
         if counter >= n_window:
             innov = y - z[0][0:3]
             innov[2] = wrap_angle(innov[2])
-            # Psi in the bis-scaled coordinates z_s = S^-1 z (the same equation, better conditioned)
+            # Psi in the coordinates z_s = S_obs^-1 z (bis-scaled: the same equation, better conditioned)
             p1, p2 = (p * S_obs[None, :] / S_obs[:, None] for p in phi)
             Ys = np.linalg.solve(p1.T, p2.T).T
             Xs = np.eye(9) - Ys
