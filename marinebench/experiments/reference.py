@@ -19,7 +19,7 @@ from marinebench.design.kalman import dp_system
 from marinebench.experiments.runner import make_world, plant_of
 from marinebench.models.supply import bis_scale
 from marinebench.observers.base import wrap_angle
-from marinebench.observers.dp import gain_pair, one_step_maps
+from marinebench.observers.dp import gain_pair, jump_scale, one_step_maps
 
 SIGNALS = ("x", "y", "psi", "b_x", "b_y", "b_n", "u", "v", "r")
 
@@ -37,9 +37,7 @@ def reference_run(exp: Experiment, variant: int, seed: int = 0) -> dict[str, flo
     n_window = max(1, round(getattr(t_obs, "delta", 2.5) / sc.dt))
     eps = np.multiply(getattr(t_obs, "eps", (np.inf,) * 3), getattr(t_obs, "eps_scale", 1.0))
     c_max, check = getattr(t_obs, "c_max", 1e10), getattr(t_obs, "check_cond", True)
-    S = bis_scale(sc.vessel)  # the KPI's units (true vessel)
-    # the jump's coordinates: the design model's bis units, or raw SI (jump_coordinates)
-    S_obs = np.ones(9) if getattr(t_obs, "jump_coordinates", "bis") == "raw" else bis_scale(sc.model)
+    S, S_obs = bis_scale(sc.vessel), jump_scale(t_obs, bis_scale(sc.model))  # the KPI's units, the jump's coordinates
     z = [np.zeros(9), np.zeros(9)]
     phi = [np.eye(9), np.eye(9)]
     windows = [(m.label, *m.window(sc.horizon)) for m in exp.metrics if m.kind == "j_tot"]

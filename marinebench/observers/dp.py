@@ -63,6 +63,12 @@ class NpoTuning(BaseModel):
         return (self.q, self.r, getattr(self, "q2_scale", 1.0), self.bias_units, arm, self.discretization)
 
 
+def jump_scale(tuning: NpoTuning, bis: np.ndarray) -> np.ndarray:
+    """The diagonal scale S of the coordinates ``z_s = S^-1 z`` in which a run's jump, cond and c_max are taken:
+    the bis units ``bis``, or ones for ``jump_coordinates: raw`` (raw SI; the NPO has no jumps and keeps bis)."""
+    return np.ones_like(bis) if getattr(tuning, "jump_coordinates", "bis") == "raw" else bis
+
+
 def gain_pair(key: tuple, M: np.ndarray, D: np.ndarray) -> tuple[DpGains, DpGains]:
     """Kalman gains L1 (Q1, R1) and L2 (q2_scale Q1, R1) for a :meth:`NpoTuning.design_key`."""
     q, r, q2, units, arm, _scheme = key
@@ -161,8 +167,7 @@ class DpObserver:
         self.eps = np.array([np.multiply(getattr(t, "eps", (np.inf,) * 3), getattr(t, "eps_scale", 1.0)) for t in tunings])
         self.c_max = np.array([getattr(t, "c_max", 1e10) for t in tunings])
         self.check = np.array([getattr(t, "check_cond", True) for t in tunings])
-        raw = np.array([getattr(t, "jump_coordinates", "bis") == "raw" for t in tunings])
-        self.jump_scale = np.where(raw[:, None], 1.0, scale)  # (B, 9): each run's jump coordinates
+        self.jump_scale = np.array([jump_scale(t, scale) for t in tunings])  # (B, 9): each run's coordinates
         self.counter = np.zeros(B, dtype=int)
         self.n_resets = np.zeros(B, dtype=int)
         self.n_jumps = np.zeros(B, dtype=int)
