@@ -69,3 +69,38 @@ def test_a_study_table_without_a_table_section_shows_depth_and_yaw_of_the_first_
     with_paper, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     header = md_row(study_table(with_paper, summary), "index")
     assert header[2:] == [f"{v.label or v.name} {side}" for v in exp.variants for side in ("ours", "paper")]
+
+
+def test_several_metrics_are_columns_named_by_metric_with_the_paper_beside_the_first(tiny_config):
+    """``table.metrics: [std, rmse]``: 'std (e_u)' and its paper column, then 'rmse (e_u)' with none; the title is
+    the table's and the variants list their settings, leaving out unset ones."""
+    exp = tiny(tiny_config, "metrics=[{kind: std, t_start: 1.0}, {kind: rmse, t_start: 2.0}]", "table.metrics=[std, rmse]")
+    std = tidy_metrics({("liu_eps0.2", "u"): [0.1, 0.2]})
+    rmse = std.assign(metric="rmse", value=std["value"] * 3)
+    table = markdown_table(exp, summarise(pd.concat([std, rmse])))
+    assert table.startswith("## tiny\n")
+    assert md_row(table, "variant") == ["variant", "std (e_u)", "std (e_u) paper", "std (e_sigma_u)",
+                                        "std (e_sigma_u) paper", "rmse (e_u)", "rmse (e_sigma_u)"]
+    assert [c.split(" [")[0] for c in md_row(table, "liu_eps0.2")[1:]] == ["0.15", "0.09", "n/a", "–", "0.45", "n/a"]
+    assert "std of est − truth over t ∈ [1, 4] s; rmse: rmse of est − truth over t ∈ [2, 4] s." in table
+    proposed = next(line for line in table.splitlines() if line.startswith("- `proposed_d1.2`: "))
+    assert proposed.startswith("- `proposed_d1.2`: kind=bejarano, delta_psi1=1.2, delta_p1=1.2,") and "rho" not in proposed
+
+
+def test_without_a_table_section_the_title_names_the_experiment_and_metric(tiny_config):
+    table = markdown_table(tiny(tiny_config, "table=null"), summarise(tidy_metrics({("liu_eps0.2", "u"): [0.1, 0.2]})))
+    assert table.startswith(f"## {tiny_config.stem}: std\n")
+    assert md_row(table, "variant")[1:3] == ["e_u ours", "e_v ours"] and "paper" not in table
+
+
+def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():
+    """The variants under a study table: the scenarios each runs on (all when unset) and its controller's settings,
+    without the empty gain overrides."""
+    exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
+    summary = summarise(pd.DataFrame([("e", "S1", "rise", 0, "depth", exp.metrics[0].label, 0.01, "ok")],
+                                     columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value",
+                                              "status"]))
+    listed = {line.split("`")[1]: line for line in study_table(exp, summary).splitlines() if line.startswith("- `")}
+    assert listed["rise"].startswith("- `rise` (S1, S2-C1, S2-C2): kind=rise, feedback=measured")
+    assert listed["cdo_srise"].startswith("- `cdo_srise` (S1, S2-C1, S2-C2, S3): kind=srise")
+    assert "depth={}" not in listed["rise"] and "None" not in listed["rise"]
