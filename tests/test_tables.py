@@ -104,3 +104,15 @@ def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():
     assert listed["rise"].startswith("- `rise` (S1, S2-C1, S2-C2): kind=rise, feedback=measured")
     assert listed["cdo_srise"].startswith("- `cdo_srise` (S1, S2-C1, S2-C2, S3): kind=srise")
     assert "depth={}" not in listed["rise"] and "None" not in listed["rise"]
+
+
+def test_a_study_table_states_each_scenarios_windows_when_they_differ():
+    """A metric's window once when the scenarios agree; else each window with its scenarios (S3 runs 44 s)."""
+    summary = summarise(pd.DataFrame([("e", "S1", "rise", 0, "depth", "rmse", 0.01, "ok")],
+                                     columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value",
+                                              "status"]))
+    text = "rmse: rmse of the tracking error (reference − actual) over t ∈ [0, {}] s"
+    same, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table.metrics=[rmse]", "scenarios.S3.horizon=40"])
+    assert f"Ours: {text.format(40)}. Mean" in study_table(same, summary)
+    table = study_table(load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table.metrics=[rmse]"])[0], summary)
+    assert f"Ours: {text.format(40)} in S1, S2-C1, S2-C2; {text.format(44)} in S3. Mean" in table

@@ -26,6 +26,17 @@ def _window(exp: Experiment, name: str) -> str:
     return f"{name}: {m.kind} of {_error_text(exp)} over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 
+def _study_window(exp: Experiment, name: str) -> str:
+    """:func:`_window` of a multi-scenario experiment: one text when the scenarios agree, else each text followed
+    by the scenarios it holds in (a metric over the whole horizon where the horizons differ)."""
+    where: dict[str, list[str]] = {}
+    for scen in exp.scenario_names:
+        where.setdefault(_window(exp.part(scen), name), []).append(scen)
+    if len(where) == 1:
+        return next(iter(where))
+    return "; ".join(f"{text} in {', '.join(scens)}" for text, scens in where.items())
+
+
 def _per_signal(value) -> str:
     """A tolerance given per signal ({'depth': 0.01, 'yaw': 0.0175}) as '0.01 (depth), 0.0175 (yaw)'."""
     if isinstance(value, dict):
@@ -107,7 +118,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     header = ["index", "scenario"]
     for v in exp.variants:
         header += [f"{v.label or v.name} ours"] + ([f"{v.label or v.name} paper"] if paper is not None else [])
-    windows = "; ".join(_window(exp.part(exp.scenario_names[0]), n) for n in names)
+    windows = "; ".join(_study_window(exp, n) for n in names)
     lines = [f"## {spec.title if spec else exp.name}", ""]
     lines += _preamble(exp, windows, f"root seed {exp.seed}; '–' where a variant does not run on a scenario", paper)
     lines += _grid(header)
