@@ -8,6 +8,7 @@ from scipy.signal import freqz, lfilter
 from marinebench.design.kalman import C_DP, DpGains, dp_system, gain_at, kalman_gains
 from marinebench.environment.waves import dnv_gamma, jonswap
 from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
+from marinebench.observers.dp import DpObserver, ResettingTuning
 from marinebench.observers.fto import fto_jump, rk4_maps
 from marinebench.sensors.gauss_markov import gm_step, stationary_std
 from marinebench.sensors.notch import Biquad, tustin_notch
@@ -177,8 +178,9 @@ def test_resetting_observer_defaults_are_torben_table_i_and_the_documented_choic
     assert (npo.q, npo.r, npo.bias_units, npo.moment_arm) == (t.q, t.r, t.bias_units, t.moment_arm)
     assert npo.design_key(76.2) == ((50.0, 50.0, 10.0), (15.0, 15.0, 1.0), 1.0, "10kN", 76.2, "predictor")
     assert ResettingTuning(moment_arm=1.0).design_key(76.2)[2:5] == (1e8, "10kN", 1.0)
-    # k in [0, 1] (k = 0 is the NPO, 1 jumps to z*), c_max >= 1 (cond >= 1 always), positive delta and eps scale
-    accepts_and_refuses(ResettingTuning, {}, [{"k": 0.0}, {"k": 1.0}, {"c_max": 1.0}, {"delta": 0.01}],
+    # k in [0, 1] (k = 0 is the NPO, 1 jumps to z*), c_max >= 1 (cond >= 1 always), positive delta and eps scale,
+    # any positive q2_scale (the paper's literal 1e-7 included)
+    accepts_and_refuses(ResettingTuning, {}, [{"k": 0.0}, {"k": 1.0}, {"c_max": 1.0}, {"delta": 0.01}, {"q2_scale": 1e-7}],
                         [{"k": -0.1}, {"k": 1.01}, {"c_max": 0.99}, {"delta": 0.0}, {"eps_scale": 0.0}, {"q2_scale": 0.0}])
 
 
@@ -355,3 +357,22 @@ def test_wave_components_carry_the_spectrums_variance():
     A = component_amplitudes(w, dw, 2.0, 6.3, 3.3)
     m0 = np.trapezoid(jonswap(w, 2.0, 6.3, 3.3), w)
     assert np.sum(A**2) / 2 == pytest.approx(m0, rel=1e-3)
+
+
+def test_a_window_end_with_a_singular_jump_matrix_counts_as_a_reset_and_adds_nothing_to_the_log_cond_sum():
+    """``DpObserver._reset`` with Phi1 = Phi2 (I - Phi2 Phi1^-1 = 0, cond inf) at one window end, then Phi2 = 0.5 Phi1
+    (cond 1) and Phi2 = diag(0.5, 0.875, ...) (cond 4): three resets, cond_max inf, and the log10 cond mean
+    (0 + 0 + log10 4) / 3 over all resets."""
+    vessel = SupplyVessel(SupplyVesselParams())
+    obs = DpObserver([ResettingTuning(k=0.5)], vessel, 0.05, bis_scale(vessel.params))
+    y = np.zeros((1, 3))
+    S = obs.init().reshape(1, 2, 9, 10)
+    obs._reset(S, np.array([0]), y)
+    assert (obs.n_resets[0], obs.log_cond_sum[0], obs.cond_max[0]) == (1, 0.0, np.inf)
+    S[0, 1, :, :9] *= 0.5
+    obs._reset(S, np.array([0]), y)
+    S[0, 1, :, :9] = np.diag([0.5] + [0.875] * 8)
+    obs._reset(S, np.array([0]), y)
+    diag = obs.diagnostics()
+    assert diag["n_resets"][0] == 3 and diag["n_jumps"][0] == 0 and diag["cond_max"][0] == np.inf
+    assert diag["log10_cond_mean"][0] == pytest.approx(np.log10(4) / 3)
