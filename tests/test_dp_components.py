@@ -8,7 +8,7 @@ from scipy.signal import freqz, lfilter
 from marinebench.design.kalman import C_DP, DpGains, dp_system, gain_at, kalman_gains
 from marinebench.environment.waves import dnv_gamma, jonswap
 from marinebench.models.supply import SupplyVessel, SupplyVesselParams, bis_scale
-from marinebench.observers.dp import DpObserver, ResettingTuning
+from marinebench.observers.dp import SIGNALS, DpObserver, ResettingTuning
 from marinebench.observers.fto import fto_jump, rk4_maps
 from marinebench.sensors.gauss_markov import gm_step, stationary_std
 from marinebench.sensors.notch import Biquad, tustin_notch
@@ -365,6 +365,7 @@ def test_a_window_end_with_a_singular_jump_matrix_counts_as_a_reset_and_adds_not
     (0 + 0 + log10 4) / 3 over all resets."""
     vessel = SupplyVessel(SupplyVesselParams())
     obs = DpObserver([ResettingTuning(k=0.5)], vessel, 0.05, bis_scale(vessel.params))
+    assert obs.signals == SIGNALS  # without lumped: z = [eta, b, nu] only
     y = np.zeros((1, 3))
     S = obs.init().reshape(1, 2, 9, 10)
     obs._reset(S, np.array([0]), y)

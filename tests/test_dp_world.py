@@ -269,6 +269,7 @@ def test_npo_is_resetting_with_k_zero():
     m = short("variants.1.observer.k=0")
     assert m["npo", "J_tot"] == pytest.approx(m["resetting", "J_tot"], rel=1e-12)
     assert m["resetting", "n_jumps"] == 0 and m["resetting", "n_resets"] == 48
+    assert m["npo", "n_jumps"] == 0 and m["npo", "n_resets"] == 48  # the NPO's windows: the same 2.5 s (Table I)
 
 
 def test_resetting_recovers_transient_on_clean_measurements():
