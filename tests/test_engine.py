@@ -9,7 +9,7 @@ from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
 from marinebench.sim.engine import ObserverGroup, check_step, rk4_step
 
-from .conftest import ROOT, md_row
+from .conftest import ROOT, accepts_and_refuses, md_row
 
 
 def short(tiny_config, *sets):
@@ -185,3 +185,41 @@ def test_kept_forces_are_read_only():
     tau, _ = _open_loop_world([0]).forces(0.5)
     with pytest.raises(ValueError, match="read-only"):
         tau[0, 0] = 1.0
+
+
+def test_open_loop_world_starts_at_bejaranos_initial_state_and_measures_eta_with_noiseless_heading():
+    """Bejarano Sec. IV: eta(0) = [0 10 0], nu(0) = 0 (the defaults of ``initial``); y = eta + n with noise (within its
+    0.2-m bound) on x, y only (eq. (8), Assumption 3)."""
+    from marinebench.scenario import OpenLoopASV, Scenario
+
+    sc = Scenario(name="s", horizon=1.0, dt=0.01, sensors={"position_noise": {"kind": "bandlimited_uniform"}})
+    world = OpenLoopASV(sc, 1, np.array([0, 1]))
+    np.testing.assert_array_equal(world.x0, [[0.0, 10.0, 0.0, 0.0, 0.0, 0.0]] * 2)
+    x = np.array([[1.0, 2.0, 0.5, 0.1, 0.2, 0.3], [-1.0, 4.0, -0.5, 0.0, 0.0, 0.0]])
+    y = world.measure(0.0, x)
+    assert np.all(y[:, :2] != x[:, :2]) and np.all(np.abs(y[:, :2] - x[:, :2]) <= 0.2)
+    np.testing.assert_array_equal(y[:, 2], x[:, 2])
+
+
+def test_a_scenario_needs_a_name_a_step_within_its_horizon_and_at_most_max_steps():
+    from marinebench.scenario import Scenario, ScenarioBase
+
+    assert ScenarioBase.MAX_STEPS == 10**8
+    accepts_and_refuses(Scenario, {"name": "s", "horizon": 2.0, "dt": 0.01},
+                        [{"name": "a"}, {"dt": 2.0}, {"horizon": 0.5}, {"horizon": 1.0, "dt": 1e-8}],
+                        [{"name": ""}, {"dt": 2.5}, {"horizon": 0.0}, {"dt": 0.0}, {"horizon": 1.0000001, "dt": 1e-8}])
+
+
+def test_open_loop_truth_is_the_state_and_bejarano_eq_6s_lumped_disturbance():
+    """``truth``: eta and nu from their state columns, and sigma = nu_dot - M^-1 tau (eq. (6)) from the plant's own
+    derivative, for a state with every entry distinct."""
+    world = _open_loop_world([0, 1])
+    x = np.array([[1.0, 2.0, 0.3, 0.4, -0.2, 0.1], [-3.0, 5.0, -1.1, 0.7, 0.05, -0.3]])
+    truth = world.truth(1.5, x)
+    for i, name in enumerate(("x", "y", "psi", "u", "v", "r")):
+        np.testing.assert_array_equal(truth[name], x[:, i])
+    x_dot, _, tau = world.derivative(1.5, x)
+    sigma = x_dot[:, 3:] - tau @ world.plant.Minv.T
+    for i, name in enumerate(("sigma_u", "sigma_v", "sigma_r")):
+        np.testing.assert_allclose(truth[name], sigma[:, i], rtol=1e-12, atol=1e-12)
+    assert np.all(np.abs(sigma) > 1e-3)
