@@ -29,7 +29,8 @@ class Initial(BaseModel):
 
 
 class Inputs(BaseModel):
-    """Open-loop control tau = [F_u, 0, tau_r] (underactuated in sway)."""
+    """Open-loop control tau = [F_u, 0, tau_r] (underactuated in sway). The paper gives no ranges; the defaults are
+    those of ``scenarios/cs2_noiseless.yaml`` (Table III's calibrated world, see the README's "Calibration")."""
 
     model_config = STRICT
     F_u: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(2.0, 4.0), amplitude=(0.5, 2.0)))
@@ -37,12 +38,15 @@ class Inputs(BaseModel):
 
 
 class Disturbances(BaseModel):
-    """Environmental forces tau_w = [F_wu, F_wv, tau_wr] in the body frame."""
+    """Environmental forces tau_w = [F_wu, F_wv, tau_wr] in the body frame. The paper gives no ranges; the defaults
+    are those of ``scenarios/cs2_noiseless.yaml`` (Table III's calibrated world)."""
 
     model_config = STRICT
-    F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
-    F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.0, 0.5)))
-    tau_wr: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.0, 0.1)))
+    F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)))
+    F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)))
+    tau_wr: Signal = Field(
+        default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.1, 0.35), frequency=(0.1, 0.4))
+    )
 
 
 class Sensors(BaseModel):

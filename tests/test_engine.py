@@ -201,6 +201,17 @@ def test_open_loop_world_starts_at_bejaranos_initial_state_and_measures_eta_with
     np.testing.assert_array_equal(y[:, 2], x[:, 2])
 
 
+def test_an_open_loop_scenario_left_unset_is_table_iiis_calibrated_world():
+    """The defaults of vessel, initial state, excitation, disturbances and sensors are cs2_noiseless.yaml's."""
+    from marinebench.loading import load_scenario
+    from marinebench.scenario import Scenario
+
+    table3 = load_scenario(ROOT / "scenarios" / "cs2_noiseless.yaml")
+    default = Scenario(name="d", horizon=1.0, dt=0.01)
+    for part in ("vessel", "initial", "inputs", "disturbances", "sensors"):
+        assert getattr(default, part) == getattr(table3, part), part
+
+
 def test_a_scenario_needs_a_name_a_step_within_its_horizon_and_at_most_max_steps():
     from marinebench.scenario import Scenario, ScenarioBase
 
