@@ -360,19 +360,22 @@ def test_wave_components_carry_the_spectrums_variance():
 
 
 def test_a_window_end_with_a_singular_jump_matrix_counts_as_a_reset_and_adds_nothing_to_the_log_cond_sum():
-    """``DpObserver._reset`` with Phi1 = Phi2 (I - Phi2 Phi1^-1 = 0, cond inf) at one window end, then Phi2 = 0.5 Phi1
-    (cond 1) and Phi2 = diag(0.5, 0.875, ...) (cond 4): three resets, cond_max inf, and the log10 cond mean
-    (0 + 0 + log10 4) / 3 over all resets."""
+    """``DpObserver._reset`` with Phi2 = diag(0.5, 0.875, ...) Phi1 (cond(I - Phi2 Phi1^-1) = 4), then Phi2 = Phi1
+    (the matrix is 0, cond inf), then Phi2 = 0.5 Phi1 (cond 1): three resets, no jump (zero innovation), cond_max
+    inf, and the log10 cond mean over all resets, log10 4 after the first and (log10 4 + 0 + 0) / 3 at the end."""
     vessel = SupplyVessel(SupplyVesselParams())
     obs = DpObserver([ResettingTuning(k=0.5)], vessel, 0.05, bis_scale(vessel.params))
     assert obs.signals == SIGNALS  # without lumped: z = [eta, b, nu] only
     y = np.zeros((1, 3))
     S = obs.init().reshape(1, 2, 9, 10)
-    obs._reset(S, np.array([0]), y)
-    assert (obs.n_resets[0], obs.log_cond_sum[0], obs.cond_max[0]) == (1, 0.0, np.inf)
-    S[0, 1, :, :9] *= 0.5
-    obs._reset(S, np.array([0]), y)
     S[0, 1, :, :9] = np.diag([0.5] + [0.875] * 8)
+    obs._reset(S, np.array([0]), y)
+    diag = obs.diagnostics()
+    assert diag["n_resets"][0] == 1 and diag["cond_max"][0] == pytest.approx(4.0)
+    assert diag["log10_cond_mean"][0] == pytest.approx(np.log10(4))
+    obs._reset(S, np.array([0]), y)  # the reset set Phi1 = Phi2 = I
+    assert (obs.n_resets[0], obs.cond_max[0]) == (2, np.inf) and obs.log_cond_sum[0] == pytest.approx(np.log10(4))
+    S[0, 1, :, :9] *= 0.5
     obs._reset(S, np.array([0]), y)
     diag = obs.diagnostics()
     assert diag["n_resets"][0] == 3 and diag["n_jumps"][0] == 0 and diag["cond_max"][0] == np.inf
