@@ -118,6 +118,21 @@ def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
     assert only_new.exit_code == 0
 
 
+def test_cells_are_listed_worse_missing_new_better_same(tmp_path, base_values):
+    """The table's order is the verdicts' severity, whatever the size of the changes (the better cell's -50 % is
+    larger than the worse cell's +30 %) or the cells' names (the new cell a/w sorts before the missing b/v)."""
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = {k: v for k, v in base_values.items() if k != ("b", "v")}
+    cand[("a", "u")] = base_values[("a", "u")] * 0.5
+    cand[("b", "u")] = base_values[("b", "u")] * 1.3
+    cand[("a", "w")] = base_values[("a", "u")]
+    write_result(tmp_path / "cand", "exp", cand)
+    table = compare_frames(pd.read_csv(tmp_path / "base" / "exp" / "metrics.csv"),
+                           pd.read_csv(tmp_path / "cand" / "exp" / "metrics.csv"))
+    assert list(zip(table["verdict"], table["variant"], table["signal"])) == [
+        ("worse", "b", "u"), ("missing", "b", "v"), ("new", "a", "w"), ("better", "a", "u"), ("same", "a", "v")]
+
+
 def test_markdown_lists_changed_cells_and_counts_the_rest(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     cand = dict(base_values)
