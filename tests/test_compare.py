@@ -610,3 +610,15 @@ def test_two_seeds_have_an_interval_and_the_relative_columns_are_of_the_baseline
     lo, hi = welch_ci(np.array([1.0, 3.0]), np.array([2.0, 5.0]))
     assert (row["ci_low"], row["ci_high"]) == (lo, hi) and (row["rel_ci_low"], row["rel_ci_high"]) == (lo / 2, hi / 2)
     assert row["rel_change"] == 1.5 / 2
+
+
+def test_the_default_tolerance_is_two_percent_of_the_baseline(tmp_path, base_values):
+    """``Tolerance()`` and compare's --rtol default: a change the seeds agree on is 'same' up to 2 % of the
+    baseline's mean and a verdict beyond it (every seed x1.019 / x1.021 / x0.979)."""
+    base = tidy_metrics({("a", "u"): [0.10, 0.11, 0.12, 0.13]})
+    verdicts = [compare_frames(base, base.assign(value=base["value"] * f))["verdict"].iloc[0] for f in (1.019, 1.021, 0.979)]
+    assert verdicts == ["same", "worse", "better"]
+    write_result(tmp_path / "base", "exp", base_values)
+    for factor, code in ((1.019, 0), (1.021, 1)):
+        write_result(tmp_path / str(factor), "exp", {k: v * factor for k, v in base_values.items()})
+        assert runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / str(factor))]).exit_code == code
