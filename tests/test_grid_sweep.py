@@ -159,3 +159,25 @@ def test_cli_grid_sweep_writes_matrix_heat_map_and_mapped_claims(tmp_path):
     assert refused.exit_code == 2 and "--require-claims" in refused.output
     bad = CliRunner().invoke(app, ["sweep", "k", "--grid", "--config", str(CFG), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "two different parameters" in bad.output
+
+
+def test_the_heat_map_stars_the_lowest_point_and_crosses_the_variants_tuning(monkeypatch, tmp_path):
+    """grid_figure on J = (1 + a) (2 + b) over k x delta: the star at the lowest cell, the cross at Torben's own
+    (k, delta) = (0.7, 2.5), delta (log spacing) on a log axis; a flat surface gets no star."""
+    from marinebench.experiments import grid
+
+    figures = []
+    monkeypatch.setattr(grid.plt, "close", figures.append)
+    exp, _ = load_experiment(CFG)
+    m = synthetic().assign(param="k", param2="delta", metric="J_tot")
+    m["param_value"] = m["param_value"] / 4 + 0.25  # k in {0.25, 0.5, 0.75}
+    m["param2_value"] = m["param2_value"] + 1.0  # delta in {1, 2, 3, 4}
+    m.loc[(m["param_value"] == 0.5) & (m["param2_value"] == 3.0), "value"] = 0.5  # the lowest, away from a corner
+    grid.grid_figure(m, ["J_tot"], exp, tmp_path / "grid.png")
+    ax = figures[0].axes[0]
+    marks = {line.get_marker(): (float(line.get_xdata()[0]), float(line.get_ydata()[0])) for line in ax.get_lines()}
+    assert marks == {"*": (3.0, 0.5), "x": (2.5, 0.7)}  # x: delta, y: k
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
+    assert ax.get_xlabel() == "δ [s]" and ax.get_ylabel() == "k"
+    grid.grid_figure(m.assign(value=1.0), ["J_tot"], exp, tmp_path / "flat.png")
+    assert [line.get_marker() for line in figures[1].axes[0].get_lines()] == ["x"]
