@@ -511,7 +511,8 @@ def test_unpaired_counts_a_larger_share_of_diverged_runs_as_worse(tmp_path, base
 
 
 def test_unpaired_ci_is_welchs_t_interval():
-    """Unequal sizes and spreads: the same interval as scipy's Welch test (Welch-Satterthwaite degrees of freedom)."""
+    """Unequal sizes and spreads: the same interval as scipy's Welch test (Welch-Satterthwaite degrees of freedom);
+    equal spreads too (a shifted copy)."""
     from scipy import stats
 
     rng = np.random.default_rng(8)
@@ -519,6 +520,9 @@ def test_unpaired_ci_is_welchs_t_interval():
         b, c = rng.normal(1.0, s_b, n_b), rng.normal(1.2, s_c, n_c)
         ci = stats.ttest_ind(c, b, equal_var=False).confidence_interval(0.95)
         assert welch_ci(b, c) == pytest.approx((ci.low, ci.high), rel=1e-9)
+    b = np.array([1.0, 1.5, 3.0])
+    ci = stats.ttest_ind(b + 0.25, b, equal_var=False).confidence_interval(0.95)
+    assert welch_ci(b, b + 0.25) == pytest.approx((ci.low, ci.high), rel=1e-9) and ci.low < 0 < ci.high
 
 
 def test_relative_change_of_a_negative_baseline_has_the_sign_of_the_change():
