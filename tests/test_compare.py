@@ -16,6 +16,7 @@ from marinebench.results.compare import (
     COLUMNS,
     Tolerance,
     compare_frames,
+    compare_variants,
     paired_bootstrap_ci,
     relative_change_ci,
     welch_ci,
@@ -249,6 +250,9 @@ def test_variant_comparison_inside_one_run(tmp_path, base_values):
     res = runner.invoke(app, ["compare", str(tmp_path / "exp"), "--variants", "a", "b"])
     assert res.exit_code == 1
     assert "| b vs a | u | std |" in res.output and "1 worse, 0 better, 1 same" in res.output
+    table = compare_variants(tmp_path / "exp", "a", "b")  # the columns of a comparison of two runs
+    assert list(table.columns) == ["experiment", "scenario", "variant", "signal", "metric", *COLUMNS]
+    assert list(table["variant"]) == ["b vs a"] * 2
 
 
 def test_names_that_look_like_numbers_or_blanks_stay_names(tmp_path, base_values):
@@ -608,6 +612,7 @@ def test_two_seeds_have_an_interval_and_the_relative_columns_are_of_the_baseline
                          "metric": "std", "value": [2.0, 2.0], "status": "ok"})
     worse = compare_frames(base, base.assign(value=[2.5, 2.5])).iloc[0]
     assert worse["verdict"] == "worse" and worse["rel_change"] == 0.25 and worse["ci_low"] == worse["ci_high"] == 0.5
+    assert worse["rel_ci_low"] == pytest.approx(0.25) and worse["rel_ci_high"] == pytest.approx(0.25)
     mixed = compare_frames(base, base.assign(value=[2.5, 1.9])).iloc[0]
     assert mixed["verdict"] == "same" and mixed["ci_low"] < 0 < mixed["ci_high"]
     spread = base.assign(value=[1.0, 3.0])
