@@ -234,3 +234,32 @@ def test_open_loop_truth_is_the_state_and_bejarano_eq_6s_lumped_disturbance():
     for i, name in enumerate(("sigma_u", "sigma_v", "sigma_r")):
         np.testing.assert_allclose(truth[name], sigma[:, i], rtol=1e-12, atol=1e-12)
     assert np.all(np.abs(sigma) > 1e-3)
+
+
+def test_a_random_sinusoid_draws_bias_amplitude_frequency_and_phase_uniformly_per_seed():
+    """Bejarano Sec. IV's "sinusoidal signals with random amplitude, frequency and bias": s(t) = b + a sin(2 pi f t +
+    phi), each parameter uniform in its range (means at the midpoints within 4 standard errors over 4000 draws)."""
+    from marinebench.environment.signals import Constant, RandomSinusoid
+
+    spec = RandomSinusoid(bias=(-0.3, 0.5), amplitude=(0.4, 1.8), frequency=(0.1, 0.4))
+    batch = spec.sample([np.random.default_rng(s) for s in range(4000)])
+    f = batch.omega / (2 * np.pi)
+    for values, (lo, hi) in ((batch.bias, spec.bias), (batch.amplitude, spec.amplitude), (f, spec.frequency),
+                             (batch.phase, (0.0, 2 * np.pi))):
+        assert lo <= values.min() and values.max() <= hi
+        assert abs(values.mean() - (lo + hi) / 2) < 4 * (hi - lo) / np.sqrt(12 * 4000)
+    t = 2.7
+    np.testing.assert_allclose(batch(t), batch.bias + batch.amplitude * np.sin(2 * np.pi * f * t + batch.phase), rtol=1e-12)
+    picked = batch.take(np.array([7, 3, 7]))
+    np.testing.assert_allclose(picked(t), batch(t)[[7, 3, 7]], rtol=1e-12)
+    np.testing.assert_array_equal(Constant(value=-0.25).sample([np.random.default_rng(0)] * 2)(t), [-0.25, -0.25])
+
+
+def test_a_random_sinusoids_ranges_are_ordered_and_amplitude_and_frequency_non_negative():
+    from marinebench.environment.signals import RandomSinusoid
+
+    accepts_and_refuses(RandomSinusoid, {}, [{"bias": (-2.0, -1.0)}, {"amplitude": (0.0, 0.0)}, {"frequency": (0.0, 0.0)}],
+                        [{"bias": (1.0, 0.0)}, {"amplitude": (0.5, 0.4)}])
+    for bad in ({"amplitude": (-0.1, 0.2)}, {"frequency": (-1.0, 1.0)}):
+        with pytest.raises(ValueError, match="amplitude and frequency ranges must be non-negative"):
+            RandomSinusoid(**bad)
