@@ -164,6 +164,8 @@ def test_cli_grid_sweep_writes_matrix_heat_map_and_mapped_claims(tmp_path):
 def test_the_heat_map_stars_the_lowest_point_and_crosses_the_variants_tuning(monkeypatch, tmp_path):
     """grid_figure on J = (1 + a) (2 + b) over k x delta: the star at the lowest cell, the cross at Torben's own
     (k, delta) = (0.7, 2.5), delta (log spacing) on a log axis; a flat surface gets no star."""
+    from matplotlib.colors import LogNorm
+
     from marinebench.experiments import grid
 
     figures = []
@@ -179,5 +181,9 @@ def test_the_heat_map_stars_the_lowest_point_and_crosses_the_variants_tuning(mon
     assert marks == {"*": (3.0, 0.5), "x": (2.5, 0.7)}  # x: delta, y: k
     assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
     assert ax.get_xlabel() == "δ [s]" and ax.get_ylabel() == "k"
+    assert ax.get_title() == "J_tot: default" and "(mean of 2 seeds)" in figures[0].texts[0].get_text()
+    norm = ax.collections[0].norm  # log colours from the lowest to the highest seed mean
+    assert isinstance(norm, LogNorm) and (norm.vmin, norm.vmax) == (0.5, pytest.approx(3 * 5 * 1.05))
     grid.grid_figure(m.assign(value=1.0), ["J_tot"], exp, tmp_path / "flat.png")
-    assert [line.get_marker() for line in figures[1].axes[0].get_lines()] == ["x"]
+    flat = figures[1].axes[0]
+    assert [line.get_marker() for line in flat.get_lines()] == ["x"] and not isinstance(flat.collections[0].norm, LogNorm)
