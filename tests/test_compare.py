@@ -302,6 +302,8 @@ def test_an_interval_that_reaches_zero_is_no_change():
     row = compare_frames(base, cand).iloc[0]
     assert row["ci_low"] == 0.0 and row["ci_high"] > 0.02 * 1.0
     assert row["verdict"] == "same"
+    better = compare_frames(base, base.assign(value=[1.0, 1.0, 1.0, 1.0, 0.5])).iloc[0]  # and ending at 0
+    assert better["ci_high"] == 0.0 and better["ci_low"] < -0.02 and better["verdict"] == "same"
 
 
 def test_the_ci_of_a_relative_change_is_one_of_ratios(tmp_path):

@@ -253,6 +253,8 @@ def test_a_random_sinusoid_draws_bias_amplitude_frequency_and_phase_uniformly_pe
     picked = batch.take(np.array([7, 3, 7]))
     np.testing.assert_allclose(picked(t), batch(t)[[7, 3, 7]], rtol=1e-12)
     np.testing.assert_array_equal(Constant(value=-0.25).sample([np.random.default_rng(0)] * 2)(t), [-0.25, -0.25])
+    for unset in (RandomSinusoid(), Constant()):  # a signal left at its defaults is zero
+        np.testing.assert_array_equal(unset.sample([np.random.default_rng(1)] * 2)(t), [0.0, 0.0])
 
 
 def test_a_random_sinusoids_ranges_are_ordered_and_amplitude_and_frequency_non_negative():
