@@ -380,3 +380,12 @@ def test_a_window_end_with_a_singular_jump_matrix_counts_as_a_reset_and_adds_not
     diag = obs.diagnostics()
     assert diag["n_resets"][0] == 3 and diag["n_jumps"][0] == 0 and diag["cond_max"][0] == np.inf
     assert diag["log10_cond_mean"][0] == pytest.approx(np.log10(4) / 3)
+
+
+def test_dp_vessel_length_mass_and_gravity_take_any_positive_value_and_refuse_zero():
+    """The three DP vessel models: a model-scale 0.5 m, 0.5 kg (or another planet's 0.5 m/s^2) is valid; zero is not."""
+    from marinebench.models.supply import LinearDpParams, ShipxSupplyLfParams
+
+    linear = {"L": 1.0, "m": 1.0, "M": np.eye(3).tolist(), "D": np.eye(3).tolist()}
+    for model, base in ((SupplyVesselParams, {}), (ShipxSupplyLfParams, {}), (LinearDpParams, linear)):
+        accepts_and_refuses(model, base, [{"L": 0.5}, {"m": 0.5}, {"g": 0.5}], [{"L": 0.0}, {"m": 0.0}, {"g": 0.0}])
