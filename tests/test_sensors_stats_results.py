@@ -214,6 +214,17 @@ def test_atomic_outputs_get_the_modes_the_umask_gives(tmp_path):
     assert (tmp_path / "exp" / "table.md").stat().st_mode & 0o777 == 0o644
 
 
+def test_a_failed_single_file_write_keeps_the_previous_file_and_leaves_no_temporary(tmp_path):
+    """atomic_write_text: text that cannot be encoded (or a full disk, a kill) fails the write, not the file."""
+    target = tmp_path / "table.md"
+    atomic_write_text(target, "old")
+    with pytest.raises(UnicodeEncodeError):
+        atomic_write_text(target, "\udc80")  # a lone surrogate: no UTF-8 for it
+    assert [p.name for p in tmp_path.iterdir()] == ["table.md"] and target.read_text() == "old"
+    atomic_write_text(target, "new")
+    assert [p.name for p in tmp_path.iterdir()] == ["table.md"] and target.read_text() == "new"
+
+
 def test_apply_set_paths():
     doc = {"seeds": 1, "variants": [{"name": "a.b", "observer": {"eps": 1}}], "scenario": {"dt": 1}}
     assert apply_set(doc, "variants[a.b].observer.eps=0.5") == "variants.0.observer.eps"  # the key it set, by index

@@ -142,14 +142,19 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    """Write a single file atomically (temp file + rename)."""
+    """Write a single file atomically (temp file + rename); a failed or interrupted write leaves the previous file
+    and no temporary one."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file an ordinary file's mode
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
+    try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file an ordinary file's mode
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def versions() -> dict[str, str]:
