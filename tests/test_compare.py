@@ -412,6 +412,8 @@ DAMAGED = {
     # a file cut short mid-row, and one with rows appended twice: before, tracebacks from the sort and the pairing
     "metrics_truncated": ("metrics.csv", b"experiment,scenario,variant,seed,signal,metric,value\nexp,s,a,0,u,std,0.1\nexp,s\n",
                           "metrics.csv: line 3: a row without its experiment, scenario, variant, seed, signal, metric"),
+    "metrics_blank_metric": ("metrics.csv", (b"experiment,scenario,variant,seed,signal,metric,value\n"
+                                             b"exp,s,a,0,u,std,0.1\nexp,s,a,0,v,,0.1\n"), "metrics.csv: line 3: a row without its"),
     "metrics_duplicated": ("metrics.csv", (b"experiment,scenario,variant,seed,signal,metric,value\n"
                                            b"exp,s,a,0,u,std,0.1\nexp,s,a,0,u,std,0.2\n"),
                            ("metrics.csv: 2 rows share their experiment, scenario, variant, seed, signal and metric "
@@ -434,6 +436,14 @@ def test_a_damaged_result_file_is_one_line_naming_it(case, command, tmp_path, ba
     assert res.exit_code == 2 and len(lines) == 1 and "Traceback" not in res.output, res.output
     assert lines[0].startswith(f"error: {cand / name}") and expected in lines[0], lines[0]
     assert not (tmp_path / "r.html").exists()
+
+
+def test_a_manifest_whose_claims_have_just_text_and_holds_is_read(tmp_path):
+    from marinebench.results.stored import read_manifest
+
+    (tmp_path / "manifest.json").write_text('{"claims": [{"text": "a < b", "holds": true}]}')
+    assert read_manifest(tmp_path) == {"claims": [{"text": "a < b", "holds": True}]}
+    assert read_manifest(tmp_path / "nowhere") == {}
 
 
 def test_report_names_a_table_that_is_not_utf8(tmp_path, base_values):
