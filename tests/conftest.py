@@ -65,9 +65,10 @@ def tiny_config(tmp_path: Path) -> Path:
     return write_tiny(tmp_path)
 
 
-def tidy_metrics(values: dict, experiment: str = "exp", scenario: str = "scen", status: dict | None = None) -> pd.DataFrame:
-    """A tidy metrics frame, metric 'std': values[(variant, signal)] -> per-seed values (seed = position), with
+def tidy_metrics(values: dict, experiment: str = "exp", scenario: str = "scen", status: dict | None = None,
+                 metric: str = "std") -> pd.DataFrame:
+    """A tidy metrics frame of one ``metric``: values[(variant, signal)] -> per-seed values (seed = position), with
     status[(variant, signal, seed)] where a run is not 'ok'."""
-    rows = [(experiment, scenario, v, seed, s, "std", x, (status or {}).get((v, s, seed), "ok"))
+    rows = [(experiment, scenario, v, seed, s, metric, x, (status or {}).get((v, s, seed), "ok"))
             for (v, s), vals in values.items() for seed, x in enumerate(vals)]
     return pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"])

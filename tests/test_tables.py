@@ -57,10 +57,8 @@ def test_a_study_table_without_a_table_section_shows_depth_and_yaw_of_the_first_
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table=null"])
     scen = exp.scenario_names[0]
     first = exp.metrics[0].label
-    rows = [(scen, v.name, sig, first, x) for v in exp.variants for sig, x in (("depth", 0.01), ("yaw", 0.02))]
-    summary = summarise(pd.DataFrame(
-        [("e", s, v, 0, sig, m, x, "ok") for s, v, sig, m, x in rows],
-        columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"]))
+    values = {(v.name, sig): [x] for v in exp.variants for sig, x in (("depth", 0.01), ("yaw", 0.02))}
+    summary = summarise(tidy_metrics(values, scenario=scen, metric=first))
     table = study_table(exp, summary)
     assert md_row(table, "index") == ["index", "scenario", *(f"{v.label or v.name} ours" for v in exp.variants)]
     assert md_row(table, f"{first} depth", scen)[2:] == ["0.01"] * len(exp.variants)
@@ -97,9 +95,7 @@ def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():
     """The variants under a study table: the scenarios each runs on (all when unset) and its controller's settings,
     without the empty gain overrides."""
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
-    summary = summarise(pd.DataFrame([("e", "S1", "rise", 0, "depth", exp.metrics[0].label, 0.01, "ok")],
-                                     columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value",
-                                              "status"]))
+    summary = summarise(tidy_metrics({("rise", "depth"): [0.01]}, scenario="S1", metric=exp.metrics[0].label))
     listed = {line.split("`")[1]: line for line in study_table(exp, summary).splitlines() if line.startswith("- `")}
     assert listed["rise"].startswith("- `rise` (S1, S2-C1, S2-C2): kind=rise, feedback=measured")
     assert listed["cdo_srise"].startswith("- `cdo_srise` (S1, S2-C1, S2-C2, S3): kind=srise")
@@ -108,9 +104,7 @@ def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():
 
 def test_a_study_table_states_each_scenarios_windows_when_they_differ():
     """A metric's window once when the scenarios agree; else each window with its scenarios (S3 runs 44 s)."""
-    summary = summarise(pd.DataFrame([("e", "S1", "rise", 0, "depth", "rmse", 0.01, "ok")],
-                                     columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value",
-                                              "status"]))
+    summary = summarise(tidy_metrics({("rise", "depth"): [0.01]}, scenario="S1", metric="rmse"))
     text = "rmse: rmse of the tracking error (reference − actual) over t ∈ [0, {}] s"
     same, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table.metrics=[rmse]", "scenarios.S3.horizon=40"])
     assert f"Ours: {text.format(40)}. Mean" in study_table(same, summary)
