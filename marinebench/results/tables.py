@@ -26,12 +26,13 @@ def _window(exp: Experiment, name: str) -> str:
     return f"{name}: {m.kind} of {_error_text(exp)} over t ∈ [{m.t_start:g}, {m.t_end or exp.scenario.horizon:g}] s"
 
 
-def _study_window(exp: Experiment, name: str) -> str:
-    """:func:`_window` of a multi-scenario experiment: one text when the scenarios agree, else each text followed
-    by the scenarios it holds in (a metric over the whole horizon where the horizons differ)."""
+def _study_window(parts: dict[str, Experiment], name: str) -> str:
+    """:func:`_window` over a multi-scenario experiment's ``parts`` (scenario -> :meth:`Experiment.part`): one text
+    when the scenarios agree, else each text followed by the scenarios it holds in (a metric over the whole
+    horizon where the horizons differ)."""
     where: dict[str, list[str]] = {}
-    for scen in exp.scenario_names:
-        where.setdefault(_window(exp.part(scen), name), []).append(scen)
+    for scen, part in parts.items():
+        where.setdefault(_window(part, name), []).append(scen)
     if len(where) == 1:
         return next(iter(where))
     return "; ".join(f"{text} in {', '.join(scens)}" for text, scens in where.items())
@@ -118,7 +119,8 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     header = ["index", "scenario"]
     for v in exp.variants:
         header += [f"{v.label or v.name} ours"] + ([f"{v.label or v.name} paper"] if paper is not None else [])
-    windows = "; ".join(_study_window(exp, n) for n in names)
+    parts = {scen: exp.part(scen) for scen in exp.scenario_names}
+    windows = "; ".join(_study_window(parts, n) for n in names)
     lines = [f"## {spec.title if spec else exp.name}", ""]
     lines += _preamble(exp, windows, f"root seed {exp.seed}; '–' where a variant does not run on a scenario", paper)
     lines += _grid(header)
