@@ -227,14 +227,30 @@ def test_malformed_claim_is_a_config_error(tmp_path):
     assert len(res.output.strip().splitlines()) == 1
 
 
-@pytest.mark.parametrize(("claim", "reason"), [
-    ({"kind": "less", "a": "nope", "b": B, "text": "x"}, "unknown variants ['nope']"),
-    ({"kind": "less", "a": A, "b": B, "signals": ["depth"], "text": "x"}, "signals ['depth'] are not recorded"),
-    ({"kind": "less", "a": A, "b": B, "metric": "rmse", "text": "x"}, "metric 'rmse' is not among"),
+def _no_table(doc):
+    doc.pop("table")
+
+
+def _two_metrics(doc):
+    doc["metrics"].append({"kind": "rmse", "name": "rmse", "t_start": 1.0, "signals": ["u"]})
+
+
+@pytest.mark.parametrize(("claim", "edit", "reason"), [
+    ({"kind": "less", "a": "nope", "b": B, "text": "x"}, None, "unknown variants ['nope']"),
+    ({"kind": "less", "a": A, "b": B, "signals": ["depth"], "text": "x"}, None, "signals ['depth'] are not recorded"),
+    ({"kind": "less", "a": A, "b": B, "metric": "rmse", "text": "x"}, None, "metric 'rmse' is not among"),
+    ({"kind": "less", "a": A, "b": B, "signals": ["u"], "text": "x"}, _no_table, "no metric (give one"),
+    ({"kind": "less", "a": A, "b": B, "metric": "std", "text": "x"}, _no_table, "signals [] are not recorded"),
+    ({"kind": "less", "a": A, "b": B, "signals": ["u"], "scenarios": ["S9"], "text": "x"}, None,
+     "unknown scenarios ['S9']"),
+    ({"kind": "near_paper", "factor": 2, "metric": "std", "signals": ["u"], "text": "x"}, _no_table,
+     "near_paper needs the table's paper values"),
+    ({"kind": "near_paper", "factor": 2, "metric": "rmse", "signals": ["u"], "text": "x"}, _two_metrics,
+     "near_paper: the paper's values (table.paper) are of the table's first metric 'std'"),
 ])
-def test_claims_naming_what_the_experiment_lacks_are_reported_not_checked(tmp_path, claim, reason):
+def test_claims_naming_what_the_experiment_lacks_are_reported_not_checked(tmp_path, claim, edit, reason):
     """An override may drop what a claim names: validate warns, run reports it, neither fails on it."""
-    cfg = tiny_with_claims(tmp_path, [claim])
+    cfg = tiny_with_claims(tmp_path, [claim], edit)
     res = runner.invoke(app, ["validate", str(cfg)])
     assert res.exit_code == 0 and f"claims.0 cannot be checked: {reason}" in res.output, res.output
     exp, _ = load_experiment(cfg)

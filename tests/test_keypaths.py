@@ -194,3 +194,9 @@ def test_a_key_is_named_in_the_file_of_its_own_scenario_not_one_with_a_longer_na
     assert _origin_of("scenarios.S10.dt", origins) == Path("exp.yaml")
     assert _origin_of("scenarios.S1.dt", origins) == Path("s1.yaml")
     assert _origin_of("scenarios.S1", origins) == Path("s1.yaml")
+
+
+def test_the_allowed_keys_are_shown_up_to_twelve_by_default():
+    twelve = [f"k{i:02d}" for i in range(12)]
+    assert unknown_key_hint("zzz", twelve) == f" (allowed here: {', '.join(twelve)})"
+    assert unknown_key_hint("zzz", twelve + ["k12"]) == f" (allowed here: {', '.join(twelve)}, …)"
