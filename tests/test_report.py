@@ -125,6 +125,13 @@ def test_report_shows_each_manifest_and_the_claims_overview(report, tmp_path):
     next(bare.rglob("manifest.json")).unlink()  # a results folder made by hand or by another tool
     text = render_report(bare)
     assert "<p>(no manifest)</p>" in text and "<p>Assumptions:</p>" not in text
+    assert "claims</h3>" not in html  # the tiny experiment states no claims: no overview
+    claimed = tmp_path / "claimed"
+    shutil.copytree(root / "new", claimed)
+    path = next(claimed.rglob("manifest.json"))
+    path.write_text(json.dumps(manifest | {"claims": [{"text": "a below b", "source": "T", "holds": True}]}))
+    text = render_report(claimed)
+    assert "claims</h3>" in text and f"<td>{name}</td><td>1\u00a0of\u00a01</td>" in text
 
 
 def test_claims_overview_counts_what_holds_and_lists_what_fails(tmp_path):
