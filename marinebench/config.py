@@ -393,9 +393,11 @@ class Experiment(BaseModel):
         if recorded is None:
             return f"metric '{metric}' is not among metrics {[m.label for m in self.metrics]}"
         signals = self.claim_signals(claim)
+        if not signals:
+            return "no signals (give them; there is no table to take them from)"
         missing = [s for s in signals if s not in recorded]
-        if not signals or missing:
-            return f"signals {missing or signals} are not recorded by metric '{metric}'"
+        if missing:
+            return f"signals {missing} are not recorded by metric '{metric}'"
         if claim.scenarios is not None and not set(claim.scenarios) <= set(self.scenario_names):
             return f"unknown scenarios {sorted(set(claim.scenarios) - set(self.scenario_names))}"
         if claim.kind == "near_paper" and (self.table is None or self.table.paper is None):

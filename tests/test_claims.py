@@ -240,7 +240,7 @@ def _two_metrics(doc):
     ({"kind": "less", "a": A, "b": B, "signals": ["depth"], "text": "x"}, None, "signals ['depth'] are not recorded"),
     ({"kind": "less", "a": A, "b": B, "metric": "rmse", "text": "x"}, None, "metric 'rmse' is not among"),
     ({"kind": "less", "a": A, "b": B, "signals": ["u"], "text": "x"}, _no_table, "no metric (give one"),
-    ({"kind": "less", "a": A, "b": B, "metric": "std", "text": "x"}, _no_table, "signals [] are not recorded"),
+    ({"kind": "less", "a": A, "b": B, "metric": "std", "text": "x"}, _no_table, "no signals (give them; there is no table"),
     ({"kind": "less", "a": A, "b": B, "signals": ["u"], "scenarios": ["S9"], "text": "x"}, None,
      "unknown scenarios ['S9']"),
     ({"kind": "near_paper", "factor": 2, "metric": "std", "signals": ["u"], "text": "x"}, _no_table,
