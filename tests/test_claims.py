@@ -131,6 +131,8 @@ def test_multi_scenario_claims_check_where_their_variants_run():
     recovery = next(r for r in evaluate(exp, metrics) if r.claim.kind == "at_most")
     assert {c.where for c in recovery.checks} == {"S3"} and recovery.checks[0].statistic == 2.5
     assert not recovery.holds  # seed 1 takes 2.5 s > 2 s
+    every = order.claim.model_copy(update={"scenarios": exp.scenario_names})
+    assert exp.claim_problem(every) is None  # a claim may name every scenario of the experiment
 
 
 def test_bootstrap_interval_covers_the_ratio_and_needs_two_seeds():

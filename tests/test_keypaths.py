@@ -5,7 +5,7 @@ from pathlib import Path
 from typing import Literal
 
 import pytest
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from marinebench.config import Experiment
 from marinebench.errors import ConfigError
@@ -200,3 +200,44 @@ def test_the_allowed_keys_are_shown_up_to_twelve_by_default():
     twelve = [f"k{i:02d}" for i in range(12)]
     assert unknown_key_hint("zzz", twelve) == f" (allowed here: {', '.join(twelve)})"
     assert unknown_key_hint("zzz", twelve + ["k12"]) == f" (allowed here: {', '.join(twelve)}, …)"
+
+
+def test_near_misses_are_at_least_60_percent_alike_and_at_most_three():
+    assert near_misses("abc", ["abcxxxx", "abxxx"]) == ["abcxxxx"]  # similarity 0.6 is in, 0.5 is out
+    assert near_misses("gain", ["gain1", "gain2", "gain3", "gain4"]) == ["gain1", "gain2", "gain3"]
+
+
+def test_keys_further_down_keep_the_parent_and_are_at_most_three():
+    deeper = ["a.horizon", "b.horizon", "c.horizon", "d.horizon"]
+    assert unknown_key_hint("scenario.horizon", deeper) == (
+        " (did you mean scenario.a.horizon, scenario.b.horizon or scenario.c.horizon?)")
+    assert nested_keys([_Root], "horizon", depth=4) == ["side.horizon", "b_mid.leaf.horizon", "deep.mid.leaf.horizon"]
+
+
+class _Left(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["left"] = "left"
+    size: float = 1.0
+
+
+class _Right(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    kind: Literal["right"] = "right"
+    width: float = 1.0
+
+
+class _Pair(BaseModel):
+    """Unions of two members: a discriminated one and a plain one."""
+    side: _Left | _Right = Field(_Left(), discriminator="kind")
+    scale: float | list[float] = 1.0
+
+
+def test_a_two_member_unions_tag_or_member_type_is_dropped():
+    err = first_error(_Pair, {"side": {"kind": "right", "width": "x"}})
+    assert err["loc"] == ("side", "right", "width")
+    assert key_path(_Pair, err["loc"])[0] == "side.width"
+    err = first_error(_Pair, {"side": {"kind": "right", "bogus": 1}})
+    assert key_path(_Pair, err["loc"], unknown=True) == ("side.bogus", ["kind", "width"])  # the member's keys
+    err = first_error(_Pair, {"scale": "x"})
+    assert len(err["loc"]) == 2  # ('scale', 'float') or ('scale', 'list[float]')
+    assert key_path(_Pair, err["loc"])[0] == "scale"
