@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.errors import ClusterError
 from marinebench.experiments import runner as runner_module
-from marinebench.experiments.cluster import local_pool
+from marinebench.experiments.cluster import available_cores, local_pool
 from marinebench.experiments.sweep import chunks_of, run_chunked, sweep_experiment
 from marinebench.loading import load_experiment
 
@@ -164,3 +164,12 @@ def test_closing_the_pool_cancels_the_chunks_nobody_waits_for(tmp_path):
     # the finished one, the one running and the two in the worker's call queue (workers + 1 deep; handed over,
     # so no longer cancellable), not the other six
     assert len(list(tmp_path.glob("*.done"))) <= 4
+
+
+def test_the_default_worker_count_is_the_cores_this_process_may_run_on(monkeypatch):
+    """``--jobs`` defaults to the affinity mask (``taskset``, a container's cpuset), not the machine's core count."""
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {3}, raising=False)
+    assert available_cores() == 1
+    monkeypatch.delattr("os.sched_getaffinity", raising=False)  # where the OS has no affinity mask
+    monkeypatch.setattr("os.cpu_count", lambda: 6)
+    assert available_cores() == 6
