@@ -40,6 +40,14 @@ def test_jonswap_hs_recovered():
     assert abs(jonswap(np.array([2 * np.pi / 6.3]), 2.0, 6.3, 3.3)[0] - 0.779) < 0.01
 
 
+def test_dnv_gamma_in_each_band_of_tp_over_sqrt_hs():
+    """DNV-RP-C205: gamma = 5 up to and at Tp/sqrt(Hs) = 3.6, exp(5.75 - 1.15 Tp/sqrt(Hs)) up to 5, 1 beyond."""
+    assert dnv_gamma(4.0, 6.0) == dnv_gamma(1.0, 3.6) == 5.0  # Tp/sqrt(Hs) = 3 and exactly 3.6
+    assert dnv_gamma(1.0, 4.0) == pytest.approx(np.exp(5.75 - 4.6))
+    assert dnv_gamma(1.0, 5.0) == pytest.approx(1.0) and dnv_gamma(1.0, 8.0) == 1.0
+    assert dnv_gamma(1.0, 3.6 + 1e-9) == pytest.approx(5.0, rel=1e-2)  # continuous at the bands' edges
+
+
 def test_jonswap_peak_is_narrower_below_the_peak_frequency():
     """DNV's peak enhancement gamma^exp(-(w - w0)^2 / (2 s^2 w0^2)), s = 0.07 below w0 and 0.09 above, over the
     Pierson-Moskowitz shape (gamma = 1) and the normalisation 1 - 0.287 ln gamma: one width from the peak on either
