@@ -112,9 +112,53 @@ def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, t
         assert message in lines[0], lines[0]
 
 
+def test_a_discrete_custom_observer_is_stepped_by_the_engine(example, tmp_path):
+    """``discrete = True`` and ``step``: called once per engine step. A forward-Euler step of the example's ESO at
+    dt = 5 ms (a triple pole at -5 rad/s, so w dt = 0.025) lands within a few % of the RK4-integrated class."""
+    (example.parent / "euler_eso.py").write_text(  # files are loaded by path, not imported from a package
+        (example.parent / "earth_eso.py").read_text() + "\n\n"
+        "class EulerEso(EarthFrameEso):\n"
+        "    discrete = True\n\n"
+        "    def __init__(self, params, plant, dt):\n"
+        "        super().__init__(params, plant, dt)\n"
+        "        self.dt = dt\n\n"
+        "    def step(self, xhat, y, tau, k):\n"
+        "        return xhat + self.dt * self.derivative(xhat, y, tau)\n")
+    doc = yaml.safe_load(example.read_text())
+    euler = {**doc["variants"][2], "name": "euler_w5", "observer": {**doc["variants"][2]["observer"], "source": "euler_eso.py:EulerEso"}}
+    doc["variants"] = [doc["variants"][2], euler]
+    path = example.parent / "euler.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    res = runner.invoke(app, ["run", str(path), "--set", "scenario.horizon=10", "--seeds", "1", "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    m = pd.read_csv(tmp_path / "out" / "euler" / "metrics.csv")
+    std = m[m["metric"] == "std"].set_index(["variant", "signal"])["value"]
+    for s in ("u", "v", "sigma_u", "sigma_v"):
+        assert std["euler_w5", s] == pytest.approx(std["earth_eso_w5", s], rel=0.05) and std["euler_w5", s] != std["earth_eso_w5", s], s
+
+
+@pytest.mark.parametrize("body, message", [
+    ("    discrete = True\n    def derivative(self): pass\n", "Half is discrete but lacks step"),
+    ("    def step(self): pass\n", "Half lacks derivative (or discrete = True and step)"),
+])
+def test_a_class_without_the_method_its_kind_of_observer_needs_is_refused(example, body, message):
+    members = "    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n    n_state = 1\n" + "".join(
+        f"    def {m}(self): pass\n" for m in ("init", "outputs", "max_rate"))
+    (example.parent / "half.py").write_text("class Half:\n" + members + body)
+    doc = yaml.safe_load(example.read_text())
+    doc["variants"][2]["observer"]["source"] = "half.py:Half"
+    path = example.parent / "half.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    res = runner.invoke(app, ["validate", str(path)])
+    assert res.exit_code == 2 and res.output.strip().startswith(f"error: {path}: variants.2.observer.source: "), res.output
+    assert message in res.output
+
+
 WRONG_RETURNS = {  # an edit of earth_eso.py -> what the one-line error says
     "rate": (("        return float(self.omega.max())", '        return "fast"'),
              "EarthFrameEso.max_rate() returned 'fast': expected a finite number >= 0 (rad/s)"),
+    "negative_rate": (("        return float(self.omega.max())", "        return -1.0"),
+                      "EarthFrameEso.max_rate() returned -1.0: expected a finite number >= 0 (rad/s)"),
     "init": (("        return np.zeros((self.omega.size, self.n_state))", "        return np.zeros(self.n_state)"),
              "EarthFrameEso.init() has shape (9,): expected (B, n_state) = (1, 9)"),
     "missing": (('return {"u": u, ', "return {"), "EarthFrameEso.outputs() lacks ['u'], declared in its signals"),
@@ -133,6 +177,14 @@ def test_a_custom_observer_returning_the_wrong_thing_is_refused_before_running(e
     res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 2 and res.output.strip() == f"error: {example}: variants.2.observer.source: ValueError: {message}"
     assert not (tmp_path / "out").exists()
+
+
+def test_a_max_rate_of_zero_sets_no_step_limit_and_is_accepted(example):
+    """``max_rate() == 0`` (no error dynamics to resolve) is a valid answer: only negative or non-finite ones are refused."""
+    source = example.parent / "earth_eso.py"
+    source.write_text(source.read_text().replace("        return float(self.omega.max())", "        return 0.0"))
+    res = runner.invoke(app, ["validate", str(example)])
+    assert res.exit_code == 0 and res.output.strip() == f"{example}: ok", res.output
 
 
 CONTROLLER = ROOT / "examples" / "custom_controller"
