@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 failure of a check (``compare``; ``--require-claims``),
 
 from __future__ import annotations
 
+import inspect
 import json
 import signal
 import sys
@@ -331,8 +332,10 @@ def sweep(
     resume: Annotated[bool, typer.Option(help="do nothing when the folder was written from the same inputs (manifest's "
                                          "inputs_key); an interrupted sweep resumes from its batches anyway")] = False,
 ) -> None:
-    """One-at-a-time sensitivity sweeps, batched: metrics.csv (param, param_value, gnss), table.md, figure.
-    With --grid, two parameters over every combination (param2, param2_value).
+    """Sensitivity sweeps, batched: one parameter at a time, or two over a grid (--grid).
+
+    Writes metrics.csv (param, param_value, gnss), table.md and a figure; with --grid, every combination of two
+    parameters (param2, param2_value).
 
     Runs are simulated in batches of --chunk-size, side by side in one worker process per core (--jobs);
     an interrupted sweep resumes from the finished batches. With --dask the batches run on Dask workers
@@ -494,8 +497,9 @@ def compare(
                                             "csv always hold every cell)")] = False,
     unpaired: Unpaired = False,
 ) -> None:
-    """Compare results cell by cell over seeds: paired on seed with bootstrap CIs (or --unpaired). Exit 0: nothing
-    worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
+    """Compare results cell by cell over seeds (paired on seed, bootstrap CIs; or --unpaired); exit 1 if worse.
+
+    Exit 0: nothing worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
     from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
 
     if not (rtol >= 0 and atol >= 0):  # nan fails too
@@ -551,8 +555,9 @@ def validate(
     set_: Sets = None,
     profile: ProfileName = None,
 ) -> None:
-    """Check configs (and solve their observer designs) without running them; with --set and --profile, as run
-    would load them."""
+    """Check configs (and solve their observer designs) without running them.
+
+    With --set and --profile, each file is checked as run would load it."""
     from marinebench.loading import is_scenario_file, load_scenario
 
     for f in files:
@@ -577,9 +582,10 @@ def design(
     profile: ProfileName = None,
     as_json: Annotated[bool, typer.Option("--json", help="JSON instead of YAML")] = False,
 ) -> None:
-    """Solve and print each variant's observer design without simulating: LMI gains and poles (Bejarano, the
-    CDO's K*), Kalman gains L1/L2 (Torben), ESO gains, as the manifest records them. With --set, e.g.
-    scenario.cdo.lmi_decay=0.2, a design is recomputed for other settings."""
+    """Solve and print each variant's observer design (gains, poles) without simulating.
+
+    LMI gains and poles (Bejarano, the CDO's K*), Kalman gains L1/L2 (Torben), ESO gains, as the manifest records
+    them. With --set, e.g. scenario.cdo.lmi_decay=0.2, a design is recomputed for other settings."""
     import yaml
 
     from marinebench.experiments.runner import design_summary
@@ -611,8 +617,9 @@ def _rounded(obj, digits: int = 6):
 
 @app.command()
 def schema(kind: Annotated[str, typer.Option(metavar="KIND", help="experiment or scenario")] = "experiment") -> None:
-    """Print the JSON Schema of experiment (or scenario) YAML files as written (with from:, scenario paths),
-    for editor completion and checking."""
+    """Print the JSON Schema of experiment (or scenario) YAML files, for editor completion and checking.
+
+    The schema is of the files as written: with from:, and scenario paths."""
     from marinebench.schema import file_schema
 
     if kind not in ("experiment", "scenario"):
@@ -630,6 +637,11 @@ def list_kinds() -> None:
         for name, doc in entries.items():
             out.print(f"  {name:<22} {doc}", markup=False)
 
+
+# Each command's help is its docstring with every paragraph on one line: typer's rich help keeps a docstring's
+# line breaks, which the terminal then wraps a second time. (The first paragraph is the summary in `--help`.)
+for _command in app.registered_commands:
+    _command.help = "\n\n".join(" ".join(p.split()) for p in inspect.cleandoc(_command.callback.__doc__).split("\n\n"))
 
 # click's exception classes, through typer (recent typer vendors its own copy of click, older ones use click's)
 _USAGE_ERROR, _CLICK_EXCEPTION = (next(c for c in typer.BadParameter.__mro__ if c.__name__ == name)

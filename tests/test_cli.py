@@ -225,6 +225,21 @@ def test_the_console_entry_point_keeps_the_commands_exit_codes(tiny_config, tmp_
     assert exit_.value.code == 2 and "Usage: marinebench" in captured.out and captured.err == ""
 
 
+@pytest.mark.parametrize("command", [c.callback.__name__ for c in app.registered_commands])
+def test_help_shows_each_paragraph_of_the_docstring_on_one_line_and_its_first_as_the_summary(command):
+    """typer's rich help keeps a docstring's line breaks (which the terminal wraps again); cli.py joins them."""
+    import inspect
+
+    info = next(c for c in app.registered_commands if c.callback.__name__ == command)
+    name = info.name or command
+    paragraphs = [" ".join(p.split()) for p in inspect.cleandoc(info.callback.__doc__).split("\n\n")]
+    wide = {"COLUMNS": "400"}
+    shown = [line.strip(" │") for line in runner.invoke(app, [name, "--help"], env=wide).output.splitlines()]
+    assert all(p in shown for p in paragraphs), (paragraphs, shown[:12])
+    listing = runner.invoke(app, ["--help"], env=wide).output
+    assert re.search(rf"│ {name} +{re.escape(paragraphs[0])} +│", listing), listing
+
+
 def test_version():
     from marinebench import __version__
     from marinebench.results.writer import git_revision
