@@ -27,7 +27,8 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation b
 # options that run and sweep share
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
 DEFAULT_SWEEP = Path("configs/torben_fig3.yaml")  # relative to the working directory, as results/ is
-SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help=f"experiment with a sweep section (default: {DEFAULT_SWEEP})")]
+SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section (the default is relative to "
+                                           "the working directory)")]
 Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value")]
 ProfileName = Annotated[str | None, typer.Option("--profile", metavar="NAME", help="apply the config's named profile (e.g. quick)")]
 Unpaired = Annotated[bool, typer.Option("--unpaired", help="compare the two sides as independent samples (e.g. runs on "
@@ -160,9 +161,9 @@ def run(
     jobs: Annotated[int, typer.Option("--jobs", "-j", metavar="N", min=0, help="experiments run at once in separate processes "
                                       "(0, the default: one per core; 1: one after the other); the numbers do not depend on it")] = 0,
     quiet: Quiet = False,
-    require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of a config (claims.md) fails, after "
+    require_claims: Annotated[bool, typer.Option("--require-claims", help="exit 1 when a claim of a config (claims.md) fails, after "
                                                  "everything is written")] = False,
-    resume: Annotated[bool, typer.Option(help="skip an experiment whose results were written from the same inputs "
+    resume: Annotated[bool, typer.Option("--resume", help="skip an experiment whose results were written from the same inputs "
                                          "(manifest's inputs_key: resolved config, seeds, marinebench source, package "
                                          "versions, custom classes' files), e.g. after an interruption")] = False,
 ) -> None:
@@ -324,12 +325,12 @@ def sweep(
                                       "this machine (0: one per core; at most one per batch; 1: all in this process); the "
                                       "numbers do not depend on it")] = 0,
     quiet: Quiet = False,
-    require_claims: Annotated[bool, typer.Option(help="exit 1 when a claim of sweep.claims (claims.md) fails, "
+    require_claims: Annotated[bool, typer.Option("--require-claims", help="exit 1 when a claim of sweep.claims (claims.md) fails, "
                                                  "after everything is written")] = False,
-    grid: Annotated[bool, typer.Option(help="every combination of two parameters (--n per axis, default 11) instead of "
+    grid: Annotated[bool, typer.Option("--grid", help="every combination of two parameters (--n per axis, default 11) instead of "
                                        "one at a time: a matrix per group in table.md, heat maps, and each claim of sweep.claims mapped along "
                                        "the slices of the other parameter (claims.md)")] = False,
-    resume: Annotated[bool, typer.Option(help="do nothing when the folder was written from the same inputs (manifest's "
+    resume: Annotated[bool, typer.Option("--resume", help="do nothing when the folder was written from the same inputs (manifest's "
                                          "inputs_key); an interrupted sweep resumes from its batches anyway")] = False,
 ) -> None:
     """Sensitivity sweeps, batched: one parameter at a time, or two over a grid (--grid).
@@ -491,7 +492,7 @@ def compare(
     atol: Annotated[float, typer.Option(metavar="X", help="absolute tolerance for 'same'")] = 0.0,
     fmt: Annotated[Format, typer.Option("--format", help="output format")] = Format.md,
     output: Annotated[Path | None, typer.Option(metavar="FILE", help="write the comparison to FILE")] = None,
-    strict: Annotated[bool, typer.Option(help="a baseline cell the candidate lacks (a dropped variant, signal or "
+    strict: Annotated[bool, typer.Option("--strict", help="a baseline cell the candidate lacks (a dropped variant, signal or "
                                          "metric) also fails, as a worse cell does")] = False,
     all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
                                             "csv always hold every cell)")] = False,

@@ -236,6 +236,7 @@ def test_help_shows_each_paragraph_of_the_docstring_on_one_line_and_its_first_as
     wide = {"COLUMNS": "400"}
     shown = [line.strip(" │") for line in runner.invoke(app, [name, "--help"], env=wide).output.splitlines()]
     assert all(p in shown for p in paragraphs), (paragraphs, shown[:12])
+    assert "--no-" not in "\n".join(shown)  # on/off options are plain flags (--resume), without a --no-resume twin
     listing = runner.invoke(app, ["--help"], env=wide).output
     assert re.search(rf"│ {name} +{re.escape(paragraphs[0])} +│", listing), listing
 
