@@ -616,16 +616,19 @@ def _rounded(obj, digits: int = 6):
     return obj
 
 
+class FileKind(str, Enum):
+    experiment = "experiment"
+    scenario = "scenario"
+
+
 @app.command()
-def schema(kind: Annotated[str, typer.Option(metavar="KIND", help="experiment or scenario")] = "experiment") -> None:
+def schema(kind: Annotated[FileKind, typer.Option(help="which files")] = FileKind.experiment) -> None:
     """Print the JSON Schema of experiment (or scenario) YAML files, for editor completion and checking.
 
     The schema is of the files as written: with from:, and scenario paths."""
     from marinebench.schema import file_schema
 
-    if kind not in ("experiment", "scenario"):
-        fail(f"--kind: expected one of ['experiment', 'scenario'], got '{kind}'")
-    sys.stdout.write(json.dumps(file_schema(kind), indent=2) + "\n")
+    sys.stdout.write(json.dumps(file_schema(kind.value), indent=2) + "\n")
 
 
 @app.command(name="list")

@@ -197,6 +197,7 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["sweep", "k", "--jobs", "2", "--dask", "local"], "error: --jobs: runs the batches in local processes; with --dask"),
     (["sweep", "k", "--grid", "--require-claims"], "error: --require-claims: a grid sweep maps where each claim holds"),
     (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
+    (["schema", "--kind", "nope"], "error: Invalid value for '--kind': "),
 ])
 def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):
     """click's usage errors (drawn by typer as a boxed panel) come out of ``marinebench`` as one line, exit 2."""
@@ -491,7 +492,6 @@ def test_schema_accepts_every_committed_file_as_written_and_flags_typos(kind, fo
         assert not check.is_valid({**doc, "horizon": "long"})
         assert not check.is_valid({**doc, "sensors": {"position_noise": {"kind": "none", "bound": 1}}})
         assert check.is_valid({"from": "cs2_noiseless.yaml", "sensors": {"position_noise": {"kind": "none"}}})
-    assert runner.invoke(app, ["schema", "--kind", "nope"]).exit_code == 2
 
 
 @pytest.mark.parametrize("kind", ["experiment", "scenario"])
