@@ -94,22 +94,40 @@ def test_a_broken_custom_observer_is_one_line_naming_file_and_key(example, tmp_p
     assert not (tmp_path / "out").exists()
 
 
-def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, tmp_path):
-    (example.parent / "partial.py").write_text("class Half:\n    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n")
-    (example.parent / "dp_only.py").write_text(
-        (example.parent / "earth_eso.py").read_text().replace('("open_loop_asv", "dp_supply")', '("dp_supply",)'))
-    lacks = "partial.py) lacks n_state, init, outputs, max_rate"
-    for source, key, message in (("partial.py:Half", "variants.2.observer.source", lacks),
-                                 ("dp_only.py:EarthFrameEso", "variants.2.observer.source",
-                                  "EarthFrameEso does not apply to scenario kind open_loop_asv (its scenario_kinds: dp_supply)")):
-        doc = yaml.safe_load(example.read_text())
-        doc["variants"][2]["observer"]["source"] = source
-        path = example.parent / f"{source.split('.')[0]}.yaml"
-        path.write_text(yaml.safe_dump(doc, sort_keys=False))
-        res = runner.invoke(app, ["validate", str(path)])
-        lines = res.output.strip().splitlines()
-        assert res.exit_code == 2 and len(lines) == 1 and lines[0].startswith(f"error: {path}: {key}: "), res.output
-        assert message in lines[0], lines[0]
+def _config_beside(example, name, edit):
+    """The example config edited by ``edit(doc)``, written beside it as ``name.yaml`` (its relative paths still resolve)."""
+    doc = yaml.safe_load(example.read_text())
+    edit(doc)
+    path = example.parent / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+PROTOCOL = "    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n    n_state = 1\n" + "".join(
+    f"    def {m}(self): pass\n" for m in ("init", "outputs", "max_rate"))
+REFUSED = {  # a class file written beside the example (from the example's earth_eso.py) -> its class, the one line
+    "partial": (lambda eso: "class Half:\n    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n", "Half",
+                "partial.py) lacks n_state, init, outputs, max_rate"),
+    "dp_only": (lambda eso: eso.replace('("open_loop_asv", "dp_supply")', '("dp_supply",)'), "EarthFrameEso",
+                "EarthFrameEso does not apply to scenario kind open_loop_asv (its scenario_kinds: dp_supply)"),
+    "no_step": (lambda eso: "class Half:\n" + PROTOCOL + "    discrete = True\n    def derivative(self): pass\n", "Half",
+                "Half is discrete but lacks step"),
+    "no_derivative": (lambda eso: "class Half:\n" + PROTOCOL + "    def step(self): pass\n", "Half",
+                      "Half lacks derivative (or discrete = True and step)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(REFUSED))
+def test_a_class_without_the_protocol_or_for_another_world_is_refused(example, case):
+    """Missing protocol members, a world it does not apply to, or a discrete class without step (a continuous one
+    without derivative): one line naming the file and key, exit 2."""
+    text, cls, message = REFUSED[case]
+    (example.parent / f"{case}.py").write_text(text((example.parent / "earth_eso.py").read_text()))
+    path = _config_beside(example, case, lambda doc: doc["variants"][2]["observer"].update(source=f"{case}.py:{cls}"))
+    res = runner.invoke(app, ["validate", str(path)])
+    lines = res.output.strip().splitlines()
+    assert res.exit_code == 2 and len(lines) == 1
+    assert lines[0].startswith(f"error: {path}: variants.2.observer.source: ") and message in lines[0], res.output
 
 
 def test_a_discrete_custom_observer_is_stepped_by_the_engine(example, tmp_path):
@@ -124,34 +142,18 @@ def test_a_discrete_custom_observer_is_stepped_by_the_engine(example, tmp_path):
         "        self.dt = dt\n\n"
         "    def step(self, xhat, y, tau, k):\n"
         "        return xhat + self.dt * self.derivative(xhat, y, tau)\n")
-    doc = yaml.safe_load(example.read_text())
-    euler = {**doc["variants"][2], "name": "euler_w5", "observer": {**doc["variants"][2]["observer"], "source": "euler_eso.py:EulerEso"}}
-    doc["variants"] = [doc["variants"][2], euler]
-    path = example.parent / "euler.yaml"
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+
+    def rk4_and_euler(doc):
+        rk4 = doc["variants"][2]
+        doc["variants"] = [rk4, {**rk4, "name": "euler_w5", "observer": {**rk4["observer"], "source": "euler_eso.py:EulerEso"}}]
+
+    path = _config_beside(example, "euler", rk4_and_euler)
     res = runner.invoke(app, ["run", str(path), "--set", "scenario.horizon=10", "--seeds", "1", "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 0, res.output
     m = pd.read_csv(tmp_path / "out" / "euler" / "metrics.csv")
     std = m[m["metric"] == "std"].set_index(["variant", "signal"])["value"]
     for s in ("u", "v", "sigma_u", "sigma_v"):
         assert std["euler_w5", s] == pytest.approx(std["earth_eso_w5", s], rel=0.05) and std["euler_w5", s] != std["earth_eso_w5", s], s
-
-
-@pytest.mark.parametrize("body, message", [
-    ("    discrete = True\n    def derivative(self): pass\n", "Half is discrete but lacks step"),
-    ("    def step(self): pass\n", "Half lacks derivative (or discrete = True and step)"),
-])
-def test_a_class_without_the_method_its_kind_of_observer_needs_is_refused(example, body, message):
-    members = "    signals = ('u',)\n    scenario_kinds = ('open_loop_asv',)\n    n_state = 1\n" + "".join(
-        f"    def {m}(self): pass\n" for m in ("init", "outputs", "max_rate"))
-    (example.parent / "half.py").write_text("class Half:\n" + members + body)
-    doc = yaml.safe_load(example.read_text())
-    doc["variants"][2]["observer"]["source"] = "half.py:Half"
-    path = example.parent / "half.yaml"
-    path.write_text(yaml.safe_dump(doc, sort_keys=False))
-    res = runner.invoke(app, ["validate", str(path)])
-    assert res.exit_code == 2 and res.output.strip().startswith(f"error: {path}: variants.2.observer.source: "), res.output
-    assert message in res.output
 
 
 WRONG_RETURNS = {  # an edit of earth_eso.py -> what the one-line error says
