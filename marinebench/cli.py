@@ -660,7 +660,8 @@ def main(args: list[str] | None = None) -> None:
     try:
         code = app(args=args, prog_name="marinebench", standalone_mode=False)
     except _USAGE_ERROR as exc:
-        message, command = " ".join(exc.format_message().split()), exc.ctx.command_path if exc.ctx else "marinebench"
+        message = " ".join(exc.format_message().split()).replace(": Value error, ", ": ")  # typer checks via pydantic
+        command = exc.ctx.command_path if exc.ctx else "marinebench"
         if message:  # (none when no arguments printed the help)
             err.print(f"error: {message} (see '{command} --help')", markup=False)
         sys.exit(2)

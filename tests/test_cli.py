@@ -197,7 +197,8 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["sweep", "k", "--jobs", "2", "--dask", "local"], "error: --jobs: runs the batches in local processes; with --dask"),
     (["sweep", "k", "--grid", "--require-claims"], "error: --require-claims: a grid sweep maps where each claim holds"),
     (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
-    (["schema", "--kind", "nope"], "error: Invalid value for '--kind': "),
+    (["schema", "--kind", "nope"], "error: Invalid value for '--kind': 'nope' is not one of 'experiment', 'scenario'"),
+    (["compare", "a", "b", "--format", "nope"], "error: Invalid value for '--format': 'nope' is not one of 'md', 'json'"),
 ])
 def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, tiny_config, tmp_path, capsys):
     """click's usage errors (drawn by typer as a boxed panel) come out of ``marinebench`` as one line, exit 2."""
