@@ -632,11 +632,24 @@ def schema(kind: Annotated[FileKind, typer.Option(help="which files")] = FileKin
 
 
 @app.command(name="list")
-def list_kinds() -> None:
-    """List registered kinds: vessels, observers, signals, noise models, metrics."""
+def list_kinds(
+    groups: Annotated[list[str] | None, typer.Argument(metavar="GROUP", help="only these groups, e.g. observers "
+                                                        "metrics (default: all)", show_default=False)] = None,
+) -> None:
+    """List registered kinds: scenarios, vessels, observers, controllers, signals, noise, events, metrics.
+
+    Each observer shows the scenario kinds it runs on. `marinebench list observers` lists one group."""
+    from marinebench.keypaths import did_you_mean, near_misses
     from marinebench.registry import kinds
 
-    for group, entries in kinds().items():
+    registered = kinds()
+    for group in groups or []:
+        if group not in registered:
+            fail(f"GROUP: no group '{group}'{did_you_mean(near_misses(group, list(registered)))}; "
+                 f"have: {', '.join(registered)}")
+    for group, entries in registered.items():
+        if groups and group not in groups:
+            continue
         out.print(f"[bold]{group}[/bold]")
         for name, doc in entries.items():
             out.print(f"  {name:<22} {doc}", markup=False)

@@ -520,6 +520,17 @@ def test_list_shows_registered_kinds():
     assert len(set(observers.values())) == len(observers)  # each kind its own line, even when classes are shared
 
 
+def test_list_takes_groups():
+    res = runner.invoke(app, ["list", "metrics", "observers"])
+    assert res.exit_code == 0, res.output
+    headers = [line for line in res.output.splitlines() if not line.startswith(" ")]
+    assert headers == ["observers", "metrics"]  # the registry's order
+    assert "  j_tot " in res.output and "  bejarano " in res.output and "cybership2" not in res.output
+    res = runner.invoke(app, ["list", "observer"])
+    assert res.exit_code == 2 and res.output.startswith("error: GROUP: no group 'observer' (did you mean observers?); "
+                                                        "have: scenarios, vessels, observers"), res.output
+
+
 def test_experiment_from_another_experiment(tiny_config, tmp_path):
     """`from:` starts from another experiment: its (relative) scenario, variants and metrics; mappings merge
     key by key, lists are replaced; the derived file names itself; a bad override names the derived file."""
