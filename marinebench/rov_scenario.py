@@ -221,7 +221,10 @@ class RovWorld:
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
         self.at_sample = np.repeat(self.x0[None, :, :2], 3, axis=0)  # reference, CDO, EO estimate at the last sample
-        self.tau = np.zeros((B, 2))  # achieved thrust (after allocation and saturation)
+        self.tau = np.zeros((B, 2))  # achieved thrust (after allocation, saturation and the thrusters' lag)
+        self.tau_cmd = np.zeros((B, 2))  # allocated and saturated command (what the observers take as input)
+        lag = sc.vessel.thrust_time_constant
+        self.thrust_response = 1.0 - np.exp(-sc.dt / lag) if lag > 0 else 1.0  # per step of T dtau/dt = cmd - tau
         self.weight = sc.vessel.mass * 9.81
         self._yaw_pts = [(t, np.deg2rad(v)) for t, v in sc.yaw_ref_deg]
 
@@ -254,8 +257,16 @@ class RovWorld:
             self.random_load = self.load_sequence[self.seed_index, k // self.load_every]
         sampled = [ch for ch, every in enumerate(self.every) if k % every == 0]
         control = k % self.control_every == 0
-        if not (sampled or control):
-            return
+        if sampled or control:
+            self._sample_and_control(k, t, x, sampled, control)
+        if self.thrust_response < 1.0:  # the lag one step on (exact for the held command), held over the step
+            self.tau = self.tau + (self.tau_cmd - self.tau) * self.thrust_response
+        else:
+            self.tau = self.tau_cmd
+
+    def _sample_and_control(self, k: int, t: float, x: np.ndarray, sampled: list[int], control: bool) -> None:
+        """Take the samples due at step ``k`` (the channels ``sampled``) and, when ``control``, the controllers'
+        new commands."""
         ref, ref_dot = self.reference(t)
         cdo, w = self.cdo_view(x)
         eo = self.eo_view(x)
@@ -283,13 +294,13 @@ class RovWorld:
                 tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
                 if ff.any():
                     tau[idx] -= ff * self.m_hat * est[idx, :, 2]
-            _, self.tau = self.plant.allocate(tau)
+            _, self.tau_cmd = self.plant.allocate(tau)
 
     def observers_derivative(self, x: np.ndarray) -> np.ndarray:
         """CDO (eq. 38 with the predictor) and EO right-hand sides, per DOF."""
         cdo, w = self.cdo_view(x)
         eo = self.eo_view(x)
-        acc = self.tau / self.m_hat  # B u with the nominal inertia
+        acc = self.tau_cmd / self.m_hat  # B u with the nominal inertia, u the command (the thrust is not measured)
         d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
         d_w = cdo[:, :, 1] + self.k_w * (w - cdo[:, :, 0])
         d_eo = chain_rhs(eo, acc, self.eo_gain, self.y - eo[:, :, 0])

@@ -117,6 +117,29 @@ def test_world_starts_at_the_first_waypoints_with_the_observers_offset():
     np.testing.assert_allclose(w.at_sample[:3], [[pose] * 2] * 3, rtol=1e-15)
 
 
+def test_thrust_follows_the_command_through_the_thrusters_first_order_lag():
+    """``vessel.thrust_time_constant`` T: between control updates the thrust approaches the held command as
+    1 - exp(-t/T) (T = 0: at once); the plant feels the thrust, the observers take the command."""
+    w = world_of(1, vessel={"thrust_time_constant": 0.1})
+    cmd = np.array([[10.0, -1.5]])
+    w.tau_cmd, w.tau = cmd.copy(), np.zeros((1, 2))
+    for k in range(1, 5):  # steps with no sample and no control update (dt 2 ms, control every 10 ms)
+        w.begin_step(k, k * w.sc.dt, w.x0)
+    np.testing.assert_allclose(w.tau, cmd * (1 - np.exp(-4 * w.sc.dt / 0.1)), rtol=1e-12)
+    before = w.observers_derivative(w.x0)
+    w.tau = w.tau + 3.0  # the thrust is not measured: the observers do not see it
+    np.testing.assert_array_equal(w.observers_derivative(w.x0), before)
+    w.tau_cmd = cmd + [[2.0, 0.5]]
+    moved = w.observers_derivative(w.x0) - before  # only the rate rows of the CDO and the EO, by B (u' - u)
+    want = np.zeros_like(moved)
+    want[0, [1, 4, 9, 12]] = np.tile([2.0, 0.5] / w.m_hat, 2)
+    np.testing.assert_allclose(moved, want, rtol=1e-9, atol=1e-12)
+    instant = world_of(1)
+    instant.tau_cmd = cmd.copy()
+    instant.begin_step(1, instant.sc.dt, instant.x0)
+    np.testing.assert_array_equal(instant.tau, cmd)
+
+
 def test_the_plant_sees_the_scenarios_damping_and_buoyancy_scales():
     """S2-C2 changes the plant only: RovWorld's plant derivative is the model's with damping x damping_scale and
     net buoyancy x buoyancy_scale (the observers keep their nominal inertia)."""
