@@ -13,8 +13,8 @@ Heave (z down) and yaw, roll and pitch passively stable and ignored, Coriolis ne
 ``b_net = B - W > 0`` pushes the vehicle up (towards negative z). Thrust allocation: two vertical
 thrusters share tau_z, four horizontal ones at lever ``yaw_lever`` share tau_psi; each saturates at
 ``thrust_max``; with ``thrust_time_constant`` T > 0 the thrust follows the allocated command through a
-first-order lag, T dtau/dt = tau_cmd - tau (applied by the closed-loop world, exact over each step). State
-``(B, 4) = [z, psi, w, r]``.
+first-order lag, T dtau/dt = tau_cmd - tau (applied by the closed-loop world: once per step, its exact solution
+for the held command, held over the step). State ``(B, 4) = [z, psi, w, r]``.
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ class LeonardLikeParams(BaseModel):
     yaw_lever: float = Field(0.25, gt=0, description="[m] moment arm of the horizontal thrusters (assumed)")
     thrust_time_constant: float = Field(
         0.0, ge=0, description="[s] first-order lag of each thruster's thrust behind its (saturated) command; 0: "
-        "instantaneous (default; the paper gives no thruster dynamics). The observers still take the command")
+        "instantaneous (default; the paper gives no thruster dynamics). The observers take the command; tau_* and "
+        "INT are the thrust")
 
 
 @dataclass(frozen=True)
