@@ -3,7 +3,8 @@
 An experiment YAML names a scenario file (``scenario: ../scenarios/x.yaml``) or embeds a scenario
 with overrides (``scenario: {from: ../scenarios/x.yaml, horizon: 10}``). ``--set dotted.key=value``
 edits the resolved document before validation; list items are addressed by index
-(``variants.0.observer.eps``) or by name (``variants[liu_eps0.1].observer.eps``). :func:`preflight`
+(``variants.0.observer.eps``) or by name (``variants[liu_eps0.1].observer.eps``), ``*`` stands for every key or
+item (``scenarios.*.horizon``). :func:`preflight`
 solves every observer design and checks the step before anything runs.
 """
 
@@ -104,9 +105,10 @@ def _split_path(key: str) -> list[str | tuple[str]]:
     return parts
 
 
-def apply_set(doc: dict, assignment: str) -> str:
-    """Apply one ``dotted.key=value`` override in place (value parsed as YAML); returns the key it set as the dotted
-    path of the document, a ``[name]`` selector replaced by the item's index (``variants.0.observer.eps``)."""
+def apply_set(doc: dict, assignment: str) -> list[str]:
+    """Apply one ``dotted.key=value`` override in place (value parsed as YAML); returns the keys it set as dotted
+    paths of the document, a ``[name]`` selector replaced by the item's index (``variants.0.observer.eps``). A ``*``
+    part stands for every key of a mapping or item of a list there (``scenarios.*.horizon=20``: every world)."""
     if "=" not in assignment:
         raise ConfigError("--set", assignment, "expected dotted.key=value")
     key, raw = assignment.split("=", 1)
@@ -115,6 +117,32 @@ def apply_set(doc: dict, assignment: str) -> str:
         parts = _split_path(key.strip())
     except (yaml.YAMLError, ValueError) as exc:
         raise ConfigError("--set", key, str(exc).splitlines()[0]) from None
+    return [_assign(doc, path, key, copy.deepcopy(value)) for path in _expanded(doc, parts, key)]
+
+
+def _expanded(doc: dict, parts: list, key: str) -> list[list]:
+    """The paths ``parts`` stands for: a ``*`` part replaced by each key of the mapping (index of the list) there."""
+    if "*" not in parts:
+        return [parts]
+    i = parts.index("*")
+    node: Any = doc
+    where: list[str] = []
+    for part in parts[:i]:
+        idx = _child(node, part, key)
+        where.append(str(idx))
+        if isinstance(node, dict) and idx not in node:
+            if len(where) <= 2:
+                _check_world_key(doc, key, where)  # scenarios.* on an experiment with one world: say where
+            raise ConfigError("--set", key, f"'*' has nothing to stand for: there is no '{idx}'")
+        node = node[idx]
+    members = list(node) if isinstance(node, dict) else [str(j) for j in range(len(node))] if isinstance(node, list) else []
+    if not members:
+        raise ConfigError("--set", key, f"'*' has nothing to stand for: an empty or scalar value ({node!r})")
+    return [path for m in members for path in _expanded(doc, [*parts[:i], m, *parts[i + 1:]], key)]
+
+
+def _assign(doc: dict, parts: list, key: str, value: Any) -> str:
+    """Set the value at one path of the document (creating missing mappings); the path as dotted indices."""
     node: Any = doc
     where: list[str] = []
     for i, part in enumerate(parts):
@@ -269,7 +297,8 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     if profile is not None:
         _apply_profile(doc, profile, path, origins)
     for s in sets:
-        origins["--set " + apply_set(doc, s)] = Path("--set")
+        for dotted in apply_set(doc, s):
+            origins["--set " + dotted] = Path("--set")
     return doc, origins
 
 
@@ -281,7 +310,8 @@ def _apply_profile(doc: dict, profile: str, path: Path, origins: dict[str, Path]
         raise ConfigError(path, "profiles", f"no profile '{profile}' (have: {', '.join(sorted(profiles)) or 'none'})")
     for i, assignment in enumerate(profiles[profile]):
         try:
-            origins["override " + apply_set(doc, assignment)] = path
+            for dotted in apply_set(doc, assignment):
+                origins["override " + dotted] = path
         except ConfigError as exc:
             raise ConfigError(path, f"profiles.{profile}.{i}", f"{exc.key}: {exc.message}") from None
 

@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -227,7 +229,7 @@ def test_a_failed_single_file_write_keeps_the_previous_file_and_leaves_no_tempor
 
 def test_apply_set_paths():
     doc = {"seeds": 1, "variants": [{"name": "a.b", "observer": {"eps": 1}}], "scenario": {"dt": 1}}
-    assert apply_set(doc, "variants[a.b].observer.eps=0.5") == "variants.0.observer.eps"  # the key it set, by index
+    assert apply_set(doc, "variants[a.b].observer.eps=0.5") == ["variants.0.observer.eps"]  # the key set, by index
     apply_set(doc, "variants.0.name=c")
     apply_set(doc, "scenario.sensors.position_noise.kind=none")
     apply_set(doc, "seeds=3")
@@ -240,6 +242,26 @@ def test_apply_set_paths():
     assert doc["scenario"]["dt"] == 1e-3 and doc["variants"][0]["observer"]["eps"] == 5e6
     apply_set(doc, "variants.0.name=1e5x")
     assert doc["variants"][0]["name"] == "1e5x"
+
+
+def test_apply_set_star_stands_for_every_key_or_item():
+    doc = {"scenarios": {"S1": {"horizon": 40, "vessel": {"mass": 1}}, "S2-C1": {"horizon": 40}},
+           "variants": [{"name": "a", "observer": {"eps": [1, 2]}}, {"name": "b"}]}
+    assert apply_set(doc, "scenarios.*.vessel.thrust_time_constant=0.1") == [
+        "scenarios.S1.vessel.thrust_time_constant", "scenarios.S2-C1.vessel.thrust_time_constant"]
+    assert doc["scenarios"]["S1"]["vessel"] == {"mass": 1, "thrust_time_constant": 0.1}
+    assert doc["scenarios"]["S2-C1"]["vessel"] == {"thrust_time_constant": 0.1}
+    assert apply_set(doc, "variants.*.observer=[1, 2]") == ["variants.0.observer", "variants.1.observer"]
+    doc["variants"][0]["observer"].append(3)  # each place holds its own copy of the value
+    assert doc["variants"][1]["observer"] == [1, 2]
+    assert apply_set(doc, "scenarios.*.*=7") == [f"scenarios.{s}.{k}" for s in ("S1", "S2-C1") for k in ("horizon", "vessel")]
+    for bad, why in [("scenarios.S9.*=1", "no scenario 'S9' (have: S1, S2-C1)"),
+                     ("variants.0.nope.*=1", "'*' has nothing to stand for: there is no 'nope'"),
+                     ("variants.0.name.*=1", "scalar value ('a')"), ("scenarios.S1.*.x=1", "cannot descend into a int")]:
+        with pytest.raises(ConfigError, match=re.escape(why)):
+            apply_set(doc, bad)
+    with pytest.raises(ConfigError, match=re.escape("one world, under 'scenario': set scenario.horizon")):
+        apply_set({"scenario": {"horizon": 1}}, "scenarios.*.horizon=5")
 
 
 def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
