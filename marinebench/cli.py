@@ -29,7 +29,8 @@ Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")]
 DEFAULT_SWEEP = Path("configs/torben_fig3.yaml")  # relative to the working directory, as results/ is
 SweepConfig = Annotated[Path, typer.Option(metavar="FILE", help="experiment with a sweep section (the default is relative to "
                                            "the working directory)")]
-Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: dotted.key=value ('scenarios.*.horizon=20': * is every key or item)")]
+Sets = Annotated[list[str] | None, typer.Option("--set", metavar="KEY=VALUE", help="override a config field: "
+                                                "dotted.key=value ('scenarios.*.horizon=20': * is every key or item)")]
 ProfileName = Annotated[str | None, typer.Option("--profile", metavar="NAME", help="apply the config's named profile (e.g. quick)")]
 Unpaired = Annotated[bool, typer.Option("--unpaired", help="compare the two sides as independent samples (e.g. runs on "
                                         "another --seed): every run counts, Welch's t interval (wider)")]

@@ -135,7 +135,12 @@ def _expanded(doc: dict, parts: list, key: str) -> list[list]:
                 _check_world_key(doc, key, where)  # scenarios.* on an experiment with one world: say where
             raise ConfigError("--set", key, f"'*' has nothing to stand for: there is no '{idx}'")
         node = node[idx]
-    members = list(node) if isinstance(node, dict) else [str(j) for j in range(len(node))] if isinstance(node, list) else []
+    if isinstance(node, dict):
+        members = list(node)
+    elif isinstance(node, list):
+        members = [str(j) for j in range(len(node))]
+    else:
+        members = []
     if not members:
         raise ConfigError("--set", key, f"'*' has nothing to stand for: an empty or scalar value ({node!r})")
     return [path for m in members for path in _expanded(doc, [*parts[:i], m, *parts[i + 1:]], key)]
