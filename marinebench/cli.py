@@ -107,12 +107,14 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
     from marinebench.loading import load_checked
 
-    sets = list(sets)
-    if seed is not None:
-        sets.append(f"seed={seed}")
-    if seeds is not None:
-        sets.append(f"seeds={seeds}")
-    return load_checked(config, sets, profile)
+    options = {"seed": seed, "seeds": seeds}
+    sets = list(sets) + [f"{key}={value}" for key, value in options.items() if value is not None]
+    try:
+        return load_checked(config, sets, profile)
+    except ConfigError as exc:  # the options are applied last, as --sets: name the option that was typed
+        if exc.file == "--set" and options.get(exc.key) is not None:
+            raise ConfigError(f"--{exc.key}", "", exc.message) from None
+        raise
 
 
 def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_start=None) -> tuple[str, str | None, int]:

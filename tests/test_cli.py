@@ -183,6 +183,10 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["run", "{cfg}", "--bogus"], "error: No such option: --bogus"),
     (["run"], "error: Missing argument 'CONFIG'. (see 'marinebench run --help')"),
     (["sweep", "k", "--n", "x"], "error: Invalid value for '--n': Input should be a valid integer"),
+    # --seed/--seeds are validated with the config's own bounds, and the error names the option typed
+    (["run", "{cfg}", "--seeds", "100000"], "error: --seeds: Input should be less than or equal to 10000"),
+    (["sweep", "k", "--seeds", "100000"], "error: --seeds: Input should be less than or equal to 10000"),
+    (["run", "{cfg}", "--set", "seeds=100000"], "error: --set: seeds: Input should be less than or equal to 10000"),
     # out of range for a sweep: a typo that would hang building 1e8 points, or fail deep in the world's arrays
     (["sweep", "k", "--n", "100000000"], "error: --n: from 2 to 1000 points per parameter"),
     (["sweep", "k", "--horizon", "nan"], "error: --horizon: must be a positive, finite number of seconds"),
