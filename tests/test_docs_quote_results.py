@@ -93,6 +93,7 @@ F45, F7, KW = "bejarano_fig4_5", "bejarano_fig7", ("0.1", "1", "10", "100")
 SIX = "| {} | {} | {} | {} | {} | {} |"  # a table row's six numbers
 T3 = "tijjani_table3"
 OBS = "tijjani_observers"
+OBS0 = "tijjani_observers_no_initial_error"
 TUNED = "tijjani_tuned"
 cm, e2 = 100.0, 100.0  # metres -> cm; the docs' e-2 m / e-2 rad
 
@@ -100,6 +101,14 @@ cm, e2 = 100.0, 100.0  # metres -> cm; the docs' e-2 m / e-2 rad
 def _paper(experiment: str) -> dict[str, dict[str, float]]:
     """The paper's values of a committed config's table (labelled as the paper's there), per variant and signal."""
     return yaml.safe_load((ROOT / "configs" / f"{experiment}.yaml").read_text())["table"]["paper"]["values"]
+
+
+def _fig2_ratios(experiment: str) -> list[float]:
+    """CDO over EO, ratios of the means, as Fig. 2's claims check them: RMSE against the truth and against the
+    samples, then the rate-estimate and the depth/yaw-estimate peaks (depth, yaw each)."""
+    cells = [("depth", "rmse"), ("yaw", "rmse"), ("depth_meas", "rmse"), ("yaw_meas", "rmse"), ("depth_rate", "peak"),
+             ("yaw_rate", "peak"), ("depth", "peak_output"), ("yaw", "peak_output")]
+    return [mean(experiment, "cdo", s, m) / mean(experiment, "eo", s, m) for s, m in cells]
 
 
 def _table3() -> dict[str, list[float]]:
@@ -291,6 +300,15 @@ QUOTES = [
           + [-change((OBS, "cdo", "yaw_meas", "rmse"), (OBS, "eo", "yaw_meas", "rmse"))]),
     Quote("README.md", "(CDO {} % depth, {} % yaw; paper −45 %, −25 %)",
           lambda: [change((OBS, "cdo", s, "rmse"), (OBS, "eo", s, "rmse")) for s in ("depth", "yaw")]),
+    Quote("README.md", "the CDO's error is {} % below the EO's in depth and\n  {} % in yaw against the truth ({} % and {} % "
+          "against the samples;", lambda: [-change((OBS0, "cdo", s, "rmse"), (OBS0, "eo", s, "rmse"))
+                                           for s in ("depth", "yaw", "depth_meas", "yaw_meas")]),
+    Quote("README.md", "CDO {} % below the EO in depth, {} % in yaw, no larger peaking",
+          lambda: [-change((OBS0, "cdo", s, "rmse"), (OBS0, "eo", s, "rmse")) for s in ("depth", "yaw")]),
+    Quote("docs/tijjani.md", "| 0, 0° (`tijjani_observers_no_initial_error`) | {} / {} | {} / {} | {} / {} | {} / {} | 4 of 4 |",
+          lambda: _fig2_ratios(OBS0)),
+    Quote("docs/tijjani.md", "| 5 cm, 10° (`tijjani_observers`) | **{} / {}** | **{} / {}** | {} / {} | **{} / {}** | 1 of 4 |",
+          lambda: _fig2_ratios(OBS)),
     Quote("README.md", "(largest error over 0.1–2 s: {} vs {} cm, {} vs {} rad)",
           lambda: [mean(OBS, "cdo", "depth", "peak_output", scale=cm), mean(OBS, "eo", "depth", "peak_output", scale=cm),
                    mean(OBS, "cdo", "yaw", "peak_output"), mean(OBS, "eo", "yaw", "peak_output")]),
