@@ -154,6 +154,12 @@ class DpScenario(ScenarioBase):
         """The observers' design model: ``design_vessel``, or the plant's own."""
         return self.design_vessel if self.design_vessel is not None else self.vessel
 
+    def assumptions(self) -> list[str]:
+        """A model mismatch: the observers run on another vessel model than the plant."""
+        if self.design_vessel in (None, self.vessel):
+            return []
+        return [f"plant {self.vessel.kind}, observers designed and run on {self.model.kind} (model mismatch)"]
+
     # per-run world parameters a variant may override (``variants[].world``)
     PER_RUN: ClassVar[tuple[str, ...]] = ("gnss_sigma", "heading_sigma_deg")
 

@@ -117,6 +117,12 @@ class RovScenario(ScenarioBase):
 
     PER_RUN: ClassVar[tuple[str, ...]] = ()
 
+    def assumptions(self) -> list[str]:
+        """Where the CDO's and EO's estimates start: Fig. 2's verdicts depend on it, and the paper does not say."""
+        depth, yaw = self.estimate_offset
+        where = "at the true depth and yaw" if depth == yaw == 0 else f"{depth:g} m and {yaw:g} deg from the true depth and yaw"
+        return [f"the CDO's and EO's estimates start {where} (estimate_offset; no initial estimation error is given in the paper)"]
+
     def cdo_design(self, cdo: CdoParams | None = None) -> dict:
         """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius of ``cdo`` (default: the
         scenario's); raises DesignError."""

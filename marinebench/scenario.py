@@ -76,6 +76,11 @@ class ScenarioBase(BaseModel):
                              f"run; at most {self.MAX_STEPS:.0e}")
         return self
 
+    def assumptions(self) -> list[str]:
+        """What this world's own settings assume beyond its paper, one phrase each, for the manifest (which names the
+        worlds that share a phrase): none by default."""
+        return []
+
     def require_multiple_of_dt(self, period: float, key: str) -> None:
         """Sampled components must tick on the engine's step grid."""
         ratio = period / self.dt

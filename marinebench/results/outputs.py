@@ -60,20 +60,13 @@ def resolved_yaml(exp) -> str:
 
 
 def model_assumptions(worlds: dict) -> list[str]:
-    """What the worlds' own settings assume, as manifest lines: a DP world whose observers run on another vessel
-    model than the plant; where an ROV world's observers start (``estimate_offset``, which the papers do not
-    give), one line per starting point with the worlds that share it."""
-    lines = [f"scenario {w.name}: plant {w.vessel.kind}, observers designed and run on {w.model.kind} (model mismatch)"
-             for w in worlds.values() if getattr(w, "design_vessel", None) not in (None, w.vessel)]
-    starts: dict[tuple[float, float], list[str]] = {}
+    """What the worlds' own settings assume (each world's ``assumptions()``: a DP model mismatch, where an ROV world's
+    observers start), as manifest lines naming the worlds that share each."""
+    shared: dict[str, list[str]] = {}
     for w in worlds.values():
-        if w.kind == "rov_tracking":
-            starts.setdefault(tuple(w.estimate_offset), []).append(w.name)
-    for (depth, yaw), names in starts.items():
-        where = "at the true depth and yaw" if depth == yaw == 0 else f"{depth:g} m and {yaw:g} deg from the true depth and yaw"
-        lines.append(f"scenario{'s' * (len(names) > 1)} {', '.join(names)}: the CDO's and EO's estimates start {where} "
-                     "(estimate_offset; no initial estimation error is given in the paper)")
-    return lines
+        for text in w.assumptions():
+            shared.setdefault(text, []).append(w.name)
+    return [f"scenario{'s' * (len(names) > 1)} {', '.join(names)}: {text}" for text, names in shared.items()]
 
 
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims: list[ClaimResult] | None = None) -> Path:
