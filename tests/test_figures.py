@@ -27,9 +27,11 @@ def drawn(monkeypatch):
 
 
 def traces(signals, n=201, horizon=4.0):
+    """Every run of a seed sees the same world (the variants' truths agree per seed, as in an open-loop world)."""
     t = np.linspace(0.0, horizon, n)
     rng = np.random.default_rng(7)
-    truth = {s: np.sin(t)[:, None] + 0.1 * np.arange(4)[None, :] + 0.01 * rng.standard_normal((n, 4)) for s in signals}
+    per_seed = {s: np.sin(t)[:, None] + 0.1 * np.arange(2)[None, :] + 0.01 * rng.standard_normal((n, 2)) for s in signals}
+    truth = {s: per_seed[s][:, RUN_SEED] for s in signals}
     est = {s: truth[s] + 0.05 * rng.standard_normal((n, 4)) for s in signals}
     for s in signals:
         est[s][:5] += 50.0  # start-up peaking the y axes must not be scaled to
@@ -84,6 +86,28 @@ def test_timeseries_plots_seed0_of_each_variant_its_error_and_scales_to_the_stea
     assert axes[0].get_ylabel() == "surge u [m/s]" and axes[1].get_ylabel() == "error [m/s]"
     assert axes[2].get_ylabel() == "σ_v [m/s²]" and axes[-1].get_xlabel() == "time [s]"
     assert "t ≥ 1 s" in fig._suptitle.get_text() and "model cybership2" in fig._suptitle.get_text()
+
+
+def test_timeseries_draws_each_variants_own_trajectory_when_a_closed_loop_drives_them_apart(tmp_path, drawn):
+    """Observers that steer the vehicle (CDO-S+RISE with another CDO tuning) give each variant its own truth: one black
+    "actual" would pair one variant's estimate with another's trajectory, so each variant's actual is drawn dashed in
+    its colour, and the axes are scaled to all of them."""
+    exp, _ = load_experiment(write_tiny(tmp_path))
+    spec = exp.figures[0].model_copy(update={"signals": ["u"]})
+    t, truth, est = traces(["u"])
+    truth["u"][:, SEED0[1]] += 3.0 * (t >= 2.0)  # variant 1's loop leaves variant 0's after 2 s
+    est["u"][:, SEED0[1]] = truth["u"][:, SEED0[1]] + 0.01
+    figures.timeseries(exp, spec, t, truth, est, RUN_VARIANT, RUN_SEED, tmp_path / "own.png")
+    top, err = lines(drawn[0].axes[0]), lines(drawn[0].axes[1])
+    names = ["liu_eps0.2", "proposed_d1.2"]
+    assert list(top) == ["liu_eps0.2", "actual (liu_eps0.2)", "proposed_d1.2", "actual (proposed_d1.2)"]
+    by_label = {line.get_label(): line for line in drawn[0].axes[0].get_lines()}
+    for v, name in enumerate(names):
+        np.testing.assert_array_equal(top[f"actual ({name})"][1], truth["u"][:, SEED0[v]])
+        np.testing.assert_array_equal(err[name][1], truth["u"][:, SEED0[v]] - est["u"][:, SEED0[v]])
+        assert by_label[f"actual ({name})"].get_color() == by_label[name].get_color()
+        assert by_label[f"actual ({name})"].get_linestyle() == "--"
+    assert drawn[0].axes[0].get_ylim()[1] > truth["u"][t >= 1.0, SEED0[1]].max()  # the upper trajectory is in view
 
 
 def test_timeseries_time_window_own_y_scale_and_world_signals_without_estimate(tmp_path, drawn):

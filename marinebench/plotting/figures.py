@@ -37,9 +37,25 @@ def _autoscale(ax, series: list[np.ndarray], late) -> None:
         ax.set_ylim(lo - pad, hi + pad)
 
 
+def _actual_and_estimates(ax, t, mask, truth: np.ndarray, est: np.ndarray, curves: list[tuple[str, int]]) -> list[np.ndarray]:
+    """One signal's row: the actual trajectory, one black line when the variants' runs share it (an open-loop world,
+    or observers watching one closed loop), else each variant's own, dashed in its colour (estimates that steer the
+    vehicle apart); and each variant's estimate. Returns the series the axis is scaled to."""
+    runs = [b for _, b in curves]
+    own = any(not np.array_equal(truth[:, b], truth[:, runs[0]], equal_nan=True) for b in runs)
+    if not own:
+        ax.plot(t[mask], truth[mask, runs[0]], "k-", lw=1.6, label="actual")
+    for label, b in curves:
+        (line,) = ax.plot(t[mask], est[mask, b], lw=1.0, label=label)
+        if own:
+            ax.plot(t[mask], truth[mask, b], "--", color=line.get_color(), lw=1.2, label=f"actual ({label})")
+    return [truth[:, b] for b in (runs if own else runs[:1])] + [est[:, b] for b in runs]
+
+
 def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
-    """A row per signal (and one of its errors below it with ``spec.error``): the actual trajectory and each
-    variant's estimate, or, for a world signal with no estimate (a control input), each variant's."""
+    """A row per signal (and one of its errors below it with ``spec.error``): the actual trajectory (each variant's
+    own, dashed, where the variants' runs of seed 0 differ, as in a closed loop steered by different estimates) and
+    each variant's estimate, or, for a world signal with no estimate (a control input), each variant's."""
     names, labels, runs = seed0_runs(exp, spec, run_variant, run_seed)
     rows = len(spec.signals) * (2 if spec.error else 1)
     fig, axes = plt.subplots(rows, 1, figsize=(8, 2.4 * rows), sharex=True, squeeze=False)
@@ -47,20 +63,16 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
     mask = slice(None)
     if spec.t_range is not None:
         mask = (t >= spec.t_range[0]) & (t <= spec.t_range[1])
-    ref = int(np.flatnonzero(run_seed == 0)[0])
     after = spec.ylim_after if spec.ylim_after is not None else getattr(exp.metrics[0], "t_start", 0.0)
     late = (t >= after) if spec.t_range is None else (t >= after) & mask
     curves = [(labels[name], b) for name, b in zip(names, runs)]
     for i, sig in enumerate(spec.signals):
         ax = axes[i * (2 if spec.error else 1)]
         if sig in est:  # truth ("actual") and each variant's estimate (or reference)
-            ax.plot(t[mask], truth[sig][mask, ref], "k-", lw=1.6, label="actual")
-            series = [truth[sig][:, ref]] + [est[sig][:, b] for b in runs]
-            for label, b in curves:
-                ax.plot(t[mask], est[sig][mask, b], lw=1.0, label=label)
-                if spec.error:
-                    axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=label)
+            series = _actual_and_estimates(ax, t, mask, truth[sig], est[sig], curves)
             if spec.error:
+                for label, b in curves:
+                    axes[i * 2 + 1].plot(t[mask], truth[sig][mask, b] - est[sig][mask, b], lw=1.0, label=label)
                 _autoscale(axes[i * 2 + 1], [truth[sig][:, b] - est[sig][:, b] for b in runs], late)
         else:  # a world signal with no estimate (e.g. a control input): one curve per variant
             series = [truth[sig][:, b] for b in runs]
