@@ -28,6 +28,17 @@ def test_sweep_points_set_the_swept_gain_and_keep_the_rest_of_the_variant():
     assert [v.controller.gains()[1].alpha for v in exp.variants] == pytest.approx(np.geomspace(0.5, 20.0, 3))
 
 
+def test_sweep_points_keep_the_variants_own_world_settings_under_the_groups():
+    """A swept variant's per-run world settings carry over to its points; a world group's settings win over them."""
+    fig3 = ROOT / "configs" / "torben_fig3.yaml"
+    base, _ = load_experiment(fig3, ["variants[resetting].world={gnss_sigma: 0.5, heading_sigma_deg: 0.1}"])
+    exp = sweep_experiment(base, ["k"], None, 2, 10.0, fig3)
+    groups = base.sweep.groups
+    assert {v.tags["gnss"] for v in exp.variants} == set(groups)
+    for v in exp.variants:
+        assert v.world == {"heading_sigma_deg": 0.1, **groups[v.tags["gnss"]]}
+
+
 def _metrics(config, *sets):
     exp, _ = load_experiment(config, ["scenario.horizon=6", "seeds=1", "figures=[]", *sets])
     return run(exp, traces=False).metrics.set_index(["variant", "signal", "metric"])["value"].sort_index()

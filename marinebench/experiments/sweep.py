@@ -137,7 +137,8 @@ def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | Non
 
 def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], n: int, file: Path) -> list[Variant]:
     """The variants of one sweep axis (one parameter) or of a grid (two): ``base``'s settings with each swept
-    parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group."""
+    parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group
+    (its per-run world settings over the variant's own)."""
     settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
     for p in axes:
         ps = spec.params[p]
@@ -160,7 +161,7 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
             try:
                 variants.append(Variant.model_validate({
                     **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
-                    "world": spec.groups[g], "tags": tags | {"gnss": g}}))
+                    "world": base.world | spec.groups[g], "tags": tags | {"gnss": g}}))
             except ValidationError as exc:
                 at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
                 raise ConfigError(file, f"sweep.params.{axes[-1] if len(axes) == 1 else ','.join(axes)}",
