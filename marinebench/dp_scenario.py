@@ -154,6 +154,10 @@ class DpScenario(ScenarioBase):
         """The observers' design model: ``design_vessel``, or the plant's own."""
         return self.design_vessel if self.design_vessel is not None else self.vessel
 
+    def check_per_run(self, world: dict[str, float]) -> None:
+        """The per-run GNSS and heading noise levels, bounded as the scenario's own ``sensors`` fields are."""
+        DpSensors.model_validate(self.sensors.model_dump() | world)
+
     def assumptions(self) -> list[str]:
         """A model mismatch: the observers run on another vessel model than the plant."""
         if self.design_vessel in (None, self.vessel):

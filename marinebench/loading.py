@@ -473,6 +473,11 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     unknown = set(v.world) - set(allowed := getattr(exp.scenario, "PER_RUN", ()))
     if unknown:
         raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+    try:
+        exp.scenario.check_per_run(v.world)
+    except ValidationError as exc:  # e.g. a negative noise level, which the scenario's own field refuses
+        err = exc.errors()[0]
+        raise ConfigError(file, f"variants.{i}.world.{err['loc'][0]}", err["msg"]) from None
     closed_loop = exp.scenario.kind == "rov_tracking"
     if closed_loop != (v.controller is not None):
         need = "a 'controller'" if closed_loop else "an 'observer'"

@@ -76,6 +76,10 @@ class ScenarioBase(BaseModel):
                              f"run; at most {self.MAX_STEPS:.0e}")
         return self
 
+    def check_per_run(self, world: dict[str, float]) -> None:
+        """A variant's per-run world settings (``variants[].world``; their keys are checked against ``PER_RUN``):
+        raises pydantic's ValidationError for a value the world's own field would refuse. None by default."""
+
     def assumptions(self) -> list[str]:
         """What this world's own settings assume beyond its paper, one phrase each, for the manifest (which names the
         worlds that share a phrase): none by default."""

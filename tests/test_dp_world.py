@@ -260,6 +260,20 @@ def test_a_variants_world_settings_reach_its_own_runs():
     np.testing.assert_allclose(world.gm[:2] / world.gm[2:], [[15.0, 15.0, 2.0]] * 2)
 
 
+@pytest.mark.parametrize("world, key", [("{gnss_sigma: -1}", "gnss_sigma"), ("{gnss_sigma: 1, heading_sigma_deg: -0.3}",
+                                                                        "heading_sigma_deg")])
+def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
+    """A per-run noise level below zero is refused like ``scenario.sensors.gnss_sigma: -1`` is (it would run: the
+    noise is symmetric), naming where it came from and the key."""
+    from marinebench.errors import ConfigError
+    from marinebench.loading import load_checked
+
+    with pytest.raises(ConfigError) as err:
+        load_checked(CONFIG, [f"variants[npo].world={world}"])
+    assert str(err.value) == f"--set: variants.0.world.{key}: Input should be greater than or equal to 0"
+    load_checked(CONFIG, ["variants[npo].world={gnss_sigma: 0, heading_sigma_deg: 0}", "seeds=1"])  # the bound itself
+
+
 def short(*sets, config=CONFIG):
     exp, _ = load_experiment(config, ["scenario.horizon=120", "seeds=1", "figures=[]", *sets])
     return run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
