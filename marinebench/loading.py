@@ -395,6 +395,10 @@ def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = N
 def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key."""
+    if exp.sweep is not None:
+        swept = exp.part(exp.sweep_scenario()).scenario if exp.scenarios is not None else exp.scenario
+        for group, world in exp.sweep.groups.items():
+            _check_world(swept, world, file, f"sweep.groups.{group}")
     if exp.scenarios is None:
         return _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
     position = {v.name: i for i, v in enumerate(exp.variants)}
@@ -463,6 +467,19 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
             raise ConfigError(file, f"{key}.dt", f"{exc} (the fastest: variant {fastest!r})") from None
 
 
+def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
+    """Per-run world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, values within
+    the bounds of its own fields (e.g. no negative noise level)."""
+    unknown = set(world) - set(allowed := getattr(scenario, "PER_RUN", ()))
+    if unknown:
+        raise ConfigError(file, key, f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+    try:
+        scenario.check_per_run(world)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        raise ConfigError(file, f"{key}.{err['loc'][0]}", err["msg"]) from None
+
+
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:
     """Check variant ``i``: its per-run world keys, that it has what its scenario needs (a controller in a
     closed loop, an applicable observer otherwise), and that its design solves. Returns the observer's group
@@ -470,14 +487,7 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     from marinebench.experiments.runner import make_observer, observer_kinds_for, wants_lumped
     from marinebench.sim.engine import ObserverGroup
 
-    unknown = set(v.world) - set(allowed := getattr(exp.scenario, "PER_RUN", ()))
-    if unknown:
-        raise ConfigError(file, f"variants.{i}.world", f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
-    try:
-        exp.scenario.check_per_run(v.world)
-    except ValidationError as exc:  # e.g. a negative noise level, which the scenario's own field refuses
-        err = exc.errors()[0]
-        raise ConfigError(file, f"variants.{i}.world.{err['loc'][0]}", err["msg"]) from None
+    _check_world(exp.scenario, v.world, file, f"variants.{i}.world")
     closed_loop = exp.scenario.kind == "rov_tracking"
     if closed_loop != (v.controller is not None):
         need = "a 'controller'" if closed_loop else "an 'observer'"

@@ -274,6 +274,21 @@ def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
     load_checked(CONFIG, ["variants[npo].world={gnss_sigma: 0, heading_sigma_deg: 0}", "seeds=1"])  # the bound itself
 
 
+@pytest.mark.parametrize("group, expected", [
+    ("gnss_sigma=-1", "sweep.groups.dgnss.gnss_sigma: Input should be greater than or equal to 0"),
+    ("foo=1", "sweep.groups.dgnss: unknown per-run world keys ['foo'] (allowed: ['gnss_sigma', 'heading_sigma_deg'])"),
+])
+def test_a_sweep_groups_world_settings_are_checked_where_they_are_written(group, expected):
+    """A sweep's world group is checked when the config loads (by validate as by sweep), at its own key, not later
+    as a point variant of the sweep's experiment."""
+    from marinebench.errors import ConfigError
+    from marinebench.loading import load_checked
+
+    with pytest.raises(ConfigError) as err:
+        load_checked(ROOT / "configs" / "torben_fig3.yaml", [f"sweep.groups.dgnss.{group}"])
+    assert str(err.value) == f"--set: {expected}"
+
+
 def short(*sets, config=CONFIG):
     exp, _ = load_experiment(config, ["scenario.horizon=120", "seeds=1", "figures=[]", *sets])
     return run(exp, traces=False).metrics.set_index(["variant", "metric"])["value"]
