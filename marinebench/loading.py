@@ -394,7 +394,8 @@ def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = N
 
 def preflight(exp: Experiment, file: Path) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
-    LMI or a too-large dt is a config error naming the file and key."""
+    LMI or a too-large dt is a config error naming the file and key; check the per-run world settings of the
+    variants and of the sweep's groups."""
     if exp.sweep is not None:
         swept = exp.part(exp.sweep_scenario()).scenario if exp.scenarios is not None else exp.scenario
         for group, world in exp.sweep.groups.items():
