@@ -8,8 +8,9 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.dp_scenario import DpScenario, DpWorld
+from marinebench.errors import ConfigError
 from marinebench.experiments.runner import DESIGNS_UP_TO, design_summary, make_observer, plant_of, run
-from marinebench.loading import load_experiment
+from marinebench.loading import load_checked, load_experiment
 from marinebench.observers.dp import ResettingTuning
 from marinebench.sim.recorders import NormIntegral
 
@@ -265,9 +266,6 @@ def test_a_variants_world_settings_reach_its_own_runs():
 def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
     """A per-run noise level below zero is refused like ``scenario.sensors.gnss_sigma: -1`` is (it would run: the
     noise is symmetric), naming where it came from and the key."""
-    from marinebench.errors import ConfigError
-    from marinebench.loading import load_checked
-
     with pytest.raises(ConfigError) as err:
         load_checked(CONFIG, [f"variants[npo].world={world}"])
     assert str(err.value) == f"--set: variants.0.world.{key}: Input should be greater than or equal to 0"
@@ -281,9 +279,6 @@ def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
 def test_a_sweep_groups_world_settings_are_checked_where_they_are_written(group, expected):
     """A sweep's world group is checked when the config loads (by validate as by sweep), at its own key, not later
     as a point variant of the sweep's experiment."""
-    from marinebench.errors import ConfigError
-    from marinebench.loading import load_checked
-
     with pytest.raises(ConfigError) as err:
         load_checked(ROOT / "configs" / "torben_fig3.yaml", [f"sweep.groups.dgnss.{group}"])
     assert str(err.value) == f"--set: {expected}"
