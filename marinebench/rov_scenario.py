@@ -118,10 +118,15 @@ class RovScenario(ScenarioBase):
     PER_RUN: ClassVar[tuple[str, ...]] = ()
 
     def assumptions(self) -> list[str]:
-        """Where the CDO's and EO's estimates start: Fig. 2's verdicts depend on it, and the paper does not say."""
+        """The thrusters' dynamics and where the CDO's and EO's estimates start (Fig. 2's verdicts depend on it):
+        the paper gives neither."""
+        lag = self.vessel.thrust_time_constant
+        thrust = (f"each thruster's thrust lags its command, first order with T = {lag:g} s" if lag > 0 else
+                  "the thrust follows the command at once")
         depth, yaw = self.estimate_offset
         where = "at the true depth and yaw" if depth == yaw == 0 else f"{depth:g} m and {yaw:g} deg from the true depth and yaw"
-        return [f"the CDO's and EO's estimates start {where} (estimate_offset; no initial estimation error is given in the paper)"]
+        return [f"{thrust} (vessel.thrust_time_constant; the paper gives no thruster dynamics)",
+                f"the CDO's and EO's estimates start {where} (estimate_offset; no initial estimation error is given in the paper)"]
 
     def cdo_design(self, cdo: CdoParams | None = None) -> dict:
         """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius of ``cdo`` (default: the

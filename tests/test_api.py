@@ -72,17 +72,22 @@ def test_a_dp_world_names_a_model_mismatch_only_where_the_observers_model_differ
 
 def test_an_rov_manifest_says_where_the_observers_start_from_the_world_not_the_config_text():
     """The initial estimation error decides Fig. 2's claims (docs/tijjani.md), so the manifest states the one that ran,
-    with a --set included, grouping the worlds that share it."""
+    with a --set included, grouping the worlds that share it; and so for the thrusters' lag."""
     from marinebench.results.outputs import model_assumptions
 
-    table3 = mb.load(ROOT / "configs" / "tijjani_table3.yaml", sets=["scenarios.S3.estimate_offset=[0.01, 2]"])
+    table3 = mb.load(ROOT / "configs" / "tijjani_table3.yaml", sets=["scenarios.S3.estimate_offset=[0.01, 2]",
+                                                                       "scenarios.S2-C2.vessel.thrust_time_constant=0.05"])
     assert model_assumptions({n: table3.part(n).scenario for n in table3.scenario_names}) == [
+        ("scenarios S1, S2-C1, S3: the thrust follows the command at once (vessel.thrust_time_constant; the paper gives "
+         "no thruster dynamics)"),
         ("scenarios S1, S2-C1, S2-C2: the CDO's and EO's estimates start at the true depth and yaw (estimate_offset; no "
         "initial estimation error is given in the paper)"),
+        ("scenario S2-C2: each thruster's thrust lags its command, first order with T = 0.05 s "
+         "(vessel.thrust_time_constant; the paper gives no thruster dynamics)"),
         ("scenario S3: the CDO's and EO's estimates start 0.01 m and 2 deg from the true depth and yaw (estimate_offset; "
         "no initial estimation error is given in the paper)")]
     fig2 = mb.load(ROOT / "configs" / "tijjani_observers.yaml", sets=["scenario.estimate_offset=[0.03, 0]"])
-    assert "S1: the CDO's and EO's estimates start 0.03 m and 0 deg from" in model_assumptions({"": fig2.scenario})[0]
+    assert "S1: the CDO's and EO's estimates start 0.03 m and 0 deg from" in model_assumptions({"": fig2.scenario})[1]
 
 
 def test_a_multi_scenario_run_stacks_its_parts_and_counts_their_cost():

@@ -42,8 +42,7 @@ STANDARD_ASSUMPTIONS = {
     "dp_supply": [_RK4],
     "rov_tracking": [
         ("plant, CDO and EO integrated jointly by fixed-step RK4 at dt; sensors sampled and held, controllers "
-        "discrete at control_period, commands through the thrust allocation and saturation; the thrust follows "
-        "the command at once unless vessel.thrust_time_constant > 0 (the paper gives no thruster dynamics)"),
+        "discrete at control_period, commands through the thrust allocation and saturation"),
     ],
 }
 
