@@ -57,7 +57,8 @@ class Variant(BaseModel):
     observer: ObserverTuning | None = Field(None, description="the observer under test (estimation experiments)")
     controller: ControllerSpec | None = Field(None, description="the controller (closed-loop rov_tracking scenarios)")
     world: dict[str, float] = Field(
-        default_factory=dict, description="per-run world parameters (e.g. gnss_sigma for dp_supply scenarios)"
+        default_factory=dict, description="per-run world parameters: gnss_sigma, heading_sigma_deg (dp_supply); "
+        "estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, gyro_noise_dps (rov_tracking)"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
     scenarios: list[str] | None = Field(
@@ -233,13 +234,15 @@ class FigureSpec(BaseModel):
 class SweepParam(BaseModel):
     """One sweepable parameter: a setting of the swept variant, varied over ``range``.
 
-    ``key`` is a field of the variant's observer (``k``, ``delta_p1``), or a dotted path in the variant that
-    starts with ``observer.`` or ``controller.`` (``observer.cdo.lmi_decay``, ``controller.yaw.alpha``);
+    ``key`` is a field of the variant's observer (``k``, ``delta_p1``), a dotted path in the variant that
+    starts with ``observer.`` or ``controller.`` (``observer.cdo.lmi_decay``, ``controller.yaw.alpha``), or
+    ``world.<key>``, a per-run world setting of the scenario (``world.gnss_sigma``, ``world.estimate_offset_depth``);
     ``fixed`` keys read the same way."""
 
     model_config = STRICT
     key: str = Field(..., description="observer field (e.g. k, delta, eps_scale, delta_p1) or a dotted path in the "
-                     "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay)")
+                     "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay), or "
+                     "world.<per-run key> (e.g. world.gnss_sigma, world.estimate_offset_yaw_deg)")
     range: tuple[float, float]
     spacing: Literal["linear", "log"] = "linear"
     fixed: dict[str, Any] = Field(default_factory=dict, description="other settings of the variant for this sweep "

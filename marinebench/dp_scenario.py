@@ -20,7 +20,8 @@ the finite-time reconstruction is biased and resets fire spuriously.
 
 from __future__ import annotations
 
-from typing import Annotated, ClassVar, Literal
+from collections.abc import Collection
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -154,18 +155,20 @@ class DpScenario(ScenarioBase):
         """The observers' design model: ``design_vessel``, or the plant's own."""
         return self.design_vessel if self.design_vessel is not None else self.vessel
 
+    def per_run_defaults(self) -> dict[str, float]:
+        """Per-run world keys: the GNSS and heading noise levels (e.g. Torben's differential and dual-band GNSS)."""
+        return {"gnss_sigma": self.sensors.gnss_sigma, "heading_sigma_deg": self.sensors.heading_sigma_deg}
+
     def check_per_run(self, world: dict[str, float]) -> None:
         """The per-run GNSS and heading noise levels, bounded as the scenario's own ``sensors`` fields are."""
         DpSensors.model_validate(self.sensors.model_dump() | world)
 
-    def assumptions(self) -> list[str]:
+    def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """A model mismatch: the observers run on another vessel model than the plant."""
         if self.design_vessel in (None, self.vessel):
             return []
         return [f"plant {self.vessel.kind}, observers designed and run on {self.model.kind} (model mismatch)"]
 
-    # per-run world parameters a variant may override (``variants[].world``)
-    PER_RUN: ClassVar[tuple[str, ...]] = ("gnss_sigma", "heading_sigma_deg")
 
 
 class DpWorld:

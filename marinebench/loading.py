@@ -471,9 +471,10 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
 def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
     """Per-run world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, values within
     the bounds of its own fields (e.g. no negative noise level)."""
-    unknown = set(world) - set(allowed := getattr(scenario, "PER_RUN", ()))
+    unknown = set(world) - set(allowed := scenario.per_run_defaults())
     if unknown:
-        raise ConfigError(file, key, f"unknown per-run world keys {sorted(unknown)} (allowed: {list(allowed)})")
+        takes = f"allowed: {list(allowed)}" if allowed else f"the {scenario.kind} world takes none"
+        raise ConfigError(file, key, f"unknown per-run world keys {sorted(unknown)} ({takes})")
     try:
         scenario.check_per_run(world)
     except ValidationError as exc:

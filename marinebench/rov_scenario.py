@@ -14,7 +14,8 @@ observer's estimate), so the RMSE recorder gives the tracking RMSE of Table III.
 from __future__ import annotations
 
 import itertools
-from typing import ClassVar, Literal
+from collections.abc import Collection
+from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -115,18 +116,29 @@ class RovScenario(ScenarioBase):
     random_load: RandomLoad | None = Field(None, description="unmodelled random load (off by default)")
     dt: float = Field(0.002, gt=0, description="integration step [s]")
 
-    PER_RUN: ClassVar[tuple[str, ...]] = ()
+    def per_run_defaults(self) -> dict[str, float]:
+        """Per-run world keys (a variant's ``world:``, ``world.<key>`` sweep parameters) and this scenario's value of
+        each: where the estimates start (``estimate_offset``, depth [m] and yaw [deg]) and the sensor noise levels."""
+        s = self.sensors
+        return {"estimate_offset_depth": self.estimate_offset[0], "estimate_offset_yaw_deg": self.estimate_offset[1],
+                "depth_noise": s.depth_noise, "yaw_noise_deg": s.yaw_noise_deg, "gyro_noise_dps": s.gyro_noise_dps}
 
-    def assumptions(self) -> list[str]:
-        """The thrusters' dynamics and where the CDO's and EO's estimates start (Fig. 2's verdicts depend on it):
-        the paper gives neither."""
+    def check_per_run(self, world: dict[str, float]) -> None:
+        """Per-run noise levels are bounded as the scenario's own ``sensors`` fields are (any finite offset goes)."""
+        RovSensors.model_validate(self.sensors.model_dump() | {k: v for k, v in world.items() if k in RovSensors.model_fields})
+
+    def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
+        """The thrusters' dynamics and where the CDO's and EO's estimates start (Fig. 2's verdicts depend on it; the
+        paper gives neither), or that the variants set the start per run (``per_run``: the keys they set)."""
         lag = self.vessel.thrust_time_constant
         thrust = (f"each thruster's thrust lags its command, first order with T = {lag:g} s" if lag > 0 else
                   "the thrust follows the command at once")
         depth, yaw = self.estimate_offset
         where = "at the true depth and yaw" if depth == yaw == 0 else f"{depth:g} m and {yaw:g} deg from the true depth and yaw"
-        return [f"{thrust} (vessel.thrust_time_constant; the paper gives no thruster dynamics)",
-                f"the CDO's and EO's estimates start {where} (estimate_offset; no initial estimation error is given in the paper)"]
+        varied = [key for key in ("estimate_offset_depth", "estimate_offset_yaw_deg") if key in per_run]
+        per_variant = f", except in the runs whose variant's world: sets {' or '.join(varied)}" if varied else ""
+        start = f"the CDO's and EO's estimates start {where} (estimate_offset; no initial estimation error is given in the paper)"
+        return [f"{thrust} (vessel.thrust_time_constant; the paper gives no thruster dynamics)", start + per_variant]
 
     def cdo_design(self, cdo: CdoParams | None = None) -> dict:
         """K*, the LMI (40) residual and, per DOF, (39) and the per-sample radius of ``cdo`` (default: the
@@ -185,16 +197,20 @@ class RovWorld:
     """Batched closed loop; ``controllers`` are (ControllerSpec, run indices) groups."""
 
     def __init__(self, sc: RovScenario, root_seed: int, seed_of_run: np.ndarray, controllers: list,
-                 observers: list | None = None) -> None:
+                 observers: list | None = None, per_run: dict[str, np.ndarray] | None = None) -> None:
         self.sc, self.plant = sc, LeonardLike(sc.vessel)
         B = len(seed_of_run)
+        # each run's value of the per-run world keys (a variant's `world:`), the scenario's own where none is given
+        own = {key: np.asarray((per_run or {}).get(key, np.full(B, value)), dtype=float)
+               for key, value in sc.per_run_defaults().items()}
         seeds = sorted({int(s) for s in seed_of_run})
         where = np.searchsorted(seeds, seed_of_run)
         n = int(np.ceil(sc.horizon / sc.dt)) + 2
         draws = np.array([g.standard_normal((n, 3)) for g in stream_rngs(root_seed, seeds, "rov_sensors")])
-        std = [sc.sensors.depth_noise, np.deg2rad(sc.sensors.yaw_noise_deg), np.deg2rad(sc.sensors.gyro_noise_dps)]
-        # per seed (runs of a seed share its draws; indexed per step, not copied per run): depth, yaw, yaw rate
-        self.noise, self.seed_index = draws * np.array(std), where
+        # unit draws per seed (runs of a seed share them; indexed per step, not copied per run) and each run's noise
+        # std: depth, yaw, yaw rate
+        self.draws, self.seed_index = draws, where
+        self.noise_std = np.stack([own["depth_noise"], np.deg2rad(own["yaw_noise_deg"]), np.deg2rad(own["gyro_noise_dps"])], axis=1)
         self.random_load = np.zeros((B, 2))
         if sc.random_load is not None:
             rl = sc.random_load
@@ -214,7 +230,7 @@ class RovWorld:
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
         self.x0 = np.zeros((B, 4 + 6 + 2 + 6))
         self.x0[:, 0], self.x0[:, 1] = sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])
-        offset = np.array([sc.estimate_offset[0], np.deg2rad(sc.estimate_offset[1])])
+        offset = np.stack([own["estimate_offset_depth"], np.deg2rad(own["estimate_offset_yaw_deg"])], axis=1)
         cdo, w = self.cdo_view(self.x0)
         eo = self.eo_view(self.x0)
         cdo[:, :, 0] = eo[:, :, 0] = self.x0[:, 0:2] + offset  # the observers start at the pose plus an offset
@@ -263,6 +279,10 @@ class RovWorld:
     def eo_view(x: np.ndarray) -> np.ndarray:
         return x[:, 12:18].reshape(-1, 2, 3)
 
+    def noise(self, k: int, channel: int) -> np.ndarray:
+        """Each run's sensor noise at step ``k`` on ``channel`` (0 depth, 1 yaw, 2 yaw rate)."""
+        return self.draws[self.seed_index, k, channel] * self.noise_std[:, channel]
+
     def begin_step(self, k: int, t: float, x: np.ndarray) -> None:
         if self.sc.random_load is not None:
             self.random_load = self.load_sequence[self.seed_index, k // self.load_every]
@@ -285,13 +305,13 @@ class RovWorld:
             self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
             self.at_sample[1, :, ch] = cdo[:, ch, 0]
             self.at_sample[2, :, ch] = eo[:, ch, 0]
-            y = x[:, ch] + self.noise[self.seed_index, k, ch]
+            y = x[:, ch] + self.noise(k, ch)
             source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
             if source == "difference":
                 if k > 0:
                     self.ydot[:, ch] = (y - self.y[:, ch]) / (self.every[ch] * self.sc.dt)
             else:
-                self.ydot[:, ch] = x[:, 2 + ch] + (self.noise[self.seed_index, k, 2] if source == "gyro" else 0.0)
+                self.ydot[:, ch] = x[:, 2 + ch] + (self.noise(k, 2) if source == "gyro" else 0.0)
             self.y[:, ch] = y
             w[:, ch] = y  # the CDO's predictor restarts from each new sample
         if control:

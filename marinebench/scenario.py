@@ -8,6 +8,7 @@ world does not depend on the batch size, on the other variants or on the order o
 from __future__ import annotations
 
 import zlib
+from collections.abc import Collection
 from typing import ClassVar, Literal
 
 import numpy as np
@@ -76,13 +77,18 @@ class ScenarioBase(BaseModel):
                              f"run; at most {self.MAX_STEPS:.0e}")
         return self
 
-    def check_per_run(self, world: dict[str, float]) -> None:
-        """A variant's per-run world settings (``variants[].world``; their keys are checked against ``PER_RUN``):
-        raises pydantic's ValidationError for a value the world's own field would refuse. None by default."""
+    def per_run_defaults(self) -> dict[str, float]:
+        """The world settings a run may override (a variant's ``world:``, a sweep group, a ``world.<key>`` sweep
+        parameter), each with this scenario's own value, which the other runs take. None by default."""
+        return {}
 
-    def assumptions(self) -> list[str]:
+    def check_per_run(self, world: dict[str, float]) -> None:
+        """A variant's per-run world settings (their keys are checked against :meth:`per_run_defaults`): raises
+        pydantic's ValidationError for a value the world's own field would refuse. Nothing to check by default."""
+
+    def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """What this world's own settings assume beyond its paper, one phrase each, for the manifest (which names the
-        worlds that share a phrase): none by default."""
+        worlds that share a phrase); ``per_run``: the per-run keys some variant sets instead. None by default."""
         return []
 
     def require_multiple_of_dt(self, period: float, key: str) -> None:

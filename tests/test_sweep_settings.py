@@ -55,6 +55,57 @@ def test_a_variants_cdo_setting_acts_on_its_runs_only():
     assert not np.allclose(per_variant.loc["cdo"], default.loc["cdo"])
 
 
+def test_a_variants_rov_world_settings_act_on_its_runs_only():
+    """Where the estimates start and the sensor noise, set per run in the cdo variant's world:, give exactly what the
+    same values in the scenario give it, while the eo variant of the same batch keeps the scenario's."""
+    world = "variants[cdo].world={estimate_offset_depth: 0.02, estimate_offset_yaw_deg: 3.0, yaw_noise_deg: 0.05}"
+    per_variant = _metrics(OBSERVERS, world)
+    in_world = _metrics(OBSERVERS, "scenario.estimate_offset=[0.02, 3.0]", "scenario.sensors.yaw_noise_deg=0.05")
+    default = _metrics(OBSERVERS)
+    np.testing.assert_array_equal(per_variant.loc["cdo"], in_world.loc["cdo"])
+    np.testing.assert_array_equal(per_variant.loc["eo"], default.loc["eo"])
+    assert not np.allclose(per_variant.loc["cdo"], default.loc["cdo"])
+
+
+def test_sweeps_of_per_run_world_keys_set_each_points_world():
+    """``world.<key>`` sweep parameters: each point's world: holds its value over the variant's own settings; the
+    manifest's line on where the estimates start says that the runs set it."""
+    base, _ = load_experiment(OBSERVERS, ["sweep.params.theta.key=world.estimate_offset_yaw_deg",
+                                          "sweep.params.theta.fixed={world.depth_noise: 0.001}",
+                                          "variants[cdo].world={gyro_noise_dps: 0.1}"])
+    exp = sweep_experiment(base, ["theta"], None, 3, 6.0, OBSERVERS)
+    assert [v.world for v in exp.variants] == [{"gyro_noise_dps": 0.1, "depth_noise": 0.001, "estimate_offset_yaw_deg": x}
+                                               for x in np.geomspace(8.0, 50.0, 3)]
+    result = run(exp, traces=False)
+    yaw_cdo = result.metrics.query("metric == 'rmse_each' and signal == 'yaw_cdo'").groupby("variant")["value"].mean()
+    assert yaw_cdo.is_monotonic_increasing  # the further the estimates start, the larger the error over the run
+    from marinebench.results.outputs import model_assumptions
+
+    (start,) = [a for a in model_assumptions({"": exp.scenario}, exp.variants) if "estimates start" in a]
+    assert start.endswith("except in the runs whose variant's world: sets estimate_offset_yaw_deg")
+    assert not any("except" in a for a in model_assumptions({"": base.scenario}, base.variants))
+
+
+def test_bad_world_sweep_keys_are_config_errors():
+    def refused(config, sets, param, match):
+        base, _ = load_experiment(config, sets)
+        with pytest.raises(ConfigError, match=match):
+            sweep_experiment(base, [param], None, 2, 10.0, config)
+
+    refused(OBSERVERS, ["sweep.params.theta.key=world.gnss_sigma"], "theta",
+            r"sweep\.params\.theta\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: "
+            r"estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, gyro_noise_dps\)")
+    refused(OBSERVERS, ["sweep.params.theta.key=world.depth_noise", "sweep.params.theta.range=[-0.001, 0.001]",
+                        "sweep.params.theta.spacing=linear", "sweep.params.theta.probes=[]"], "theta",
+            r"sweep\.params\.theta: theta=-0\.001: Input should be greater than or equal to 0")
+    fig3 = ROOT / "configs" / "torben_fig3.yaml"
+    refused(fig3, ["sweep.params.k.key=world.gnss_sigma"], "k",
+            r"sweep\.params\.k\.key: 'world\.gnss_sigma' is also set by world group\(s\) \['dgnss', 'dualband'\]")
+    table4 = ROOT / "configs" / "bejarano_table4.yaml"
+    refused(table4, ["sweep.params.k_omega.key=world.gnss_sigma"], "k_omega",
+            r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(the open_loop_asv world takes none\)")
+
+
 def test_bad_sweep_and_observer_settings_are_config_errors():
     with pytest.raises(ConfigError, match=r"variants\.0\.observer.*cdo: unknown key\(s\) \['mu'\]"):
         load_experiment(OBSERVERS, ["variants[cdo].observer.cdo={mu: 0.2}"])

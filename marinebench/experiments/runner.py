@@ -93,6 +93,13 @@ def make_observer(kind: str, tunings: list, scenario, plant, lumped: bool = Fals
     raise KeyError(kind)
 
 
+def per_run_world(exp: Experiment, run_variant: np.ndarray) -> dict[str, np.ndarray]:
+    """Each per-run world key some variant sets (its ``world:``), over the runs: the run's variant's value, or the
+    scenario's own."""
+    return {key: np.array([exp.variants[v].world.get(key, own) for v in run_variant], dtype=float)
+            for key, own in exp.scenario.per_run_defaults().items() if any(key in v.world for v in exp.variants)}
+
+
 def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
     sc = exp.scenario
     if sc.kind == "open_loop_asv":
@@ -102,13 +109,9 @@ def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
         for b, v in enumerate(run_variant):
             spec = exp.variants[v].controller
             specs.setdefault(spec.model_dump_json(), (spec, []))[1].append(b)
-        return RovWorld(sc, exp.seed, run_seed, list(specs.values()), [exp.variants[v].observer for v in run_variant])
-    per_run = {}
-    for key in sc.PER_RUN:
-        if any(key in v.world for v in exp.variants):
-            default = getattr(sc.sensors, key)
-            per_run[key] = np.array([exp.variants[v].world.get(key, default) for v in run_variant], dtype=float)
-    return DpWorld(sc, exp.seed, run_seed, per_run, wants_lumped(exp))
+        return RovWorld(sc, exp.seed, run_seed, list(specs.values()), [exp.variants[v].observer for v in run_variant],
+                        per_run_world(exp, run_variant))
+    return DpWorld(sc, exp.seed, run_seed, per_run_world(exp, run_variant), wants_lumped(exp))
 
 
 @dataclass

@@ -99,7 +99,7 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     base = next(v for v in exp.variants if v.name == spec.variant)
     n = n or (GRID_N if grid else spec.n)
     variants = [v for axes in ([params] if grid else [[p] for p in params])
-                for v in _points(spec, base, axes, groups, n, file)]
+                for v in _points(spec, base, axes, groups, n, file, exp.scenario)]
     scenario = exp.scenario if horizon is None else _with_horizon(exp, horizon, file)
     return exp.model_copy(update={"variants": variants, "figures": [], "table": None, "sweep": None, "name": name,
                                   "scenario": scenario})
@@ -135,17 +135,20 @@ def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | Non
     return groups
 
 
-def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], n: int, file: Path) -> list[Variant]:
+def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], n: int, file: Path,
+            scenario: Any) -> list[Variant]:
     """The variants of one sweep axis (one parameter) or of a grid (two): ``base``'s settings with each swept
-    parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group
-    (its per-run world settings over the variant's own)."""
-    settings = base.model_dump(include={"observer", "controller"}, exclude_none=True)
+    parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group.
+    A run's per-run world settings are the variant's own, then its group's, then the sweep's ``world.<key>`` values
+    (a key that a swept group also sets is refused: the groups would not differ in it)."""
+    settings = base.model_dump(include={"observer", "controller"}, exclude_none=True) | {"world": {}}
     for p in axes:
         ps = spec.params[p]
-        if _get(settings, _path(ps.key)) is _MISSING:
-            raise ConfigError(file, f"sweep.params.{p}.key", f"'{ps.key}' is not a setting of variant '{base.name}' "
-                              f"(an observer field, or a path under observer. or controller.)")
+        swept_groups = {g: spec.groups[g] for g in groups}
+        _check_key(settings, ps.key, base.name, scenario, swept_groups, file, f"sweep.params.{p}.key")
         for key, value in ps.fixed.items():
+            if key.startswith("world."):
+                _check_key(settings, key, base.name, scenario, swept_groups, file, f"sweep.params.{p}.fixed")
             _set(settings, _path(key), value)
     grids = [spec.params[p].values(n) for p in axes]
     variants = []
@@ -158,10 +161,12 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
         if len(axes) == 2:
             tags |= {"param2": axes[1], "param2_value": values[1]}
         for g in groups:
+            world = base.world | spec.groups[g] | point["world"]
             try:
+                scenario.check_per_run(world)
                 variants.append(Variant.model_validate({
                     **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
-                    "world": base.world | spec.groups[g], "tags": tags | {"gnss": g}}))
+                    "world": world, "tags": tags | {"gnss": g}}))
             except ValidationError as exc:
                 at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
                 raise ConfigError(file, f"sweep.params.{axes[-1] if len(axes) == 1 else ','.join(axes)}",
@@ -172,10 +177,28 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
 _MISSING = object()
 
 
+def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: dict[str, dict], file: Path, where: str) -> None:
+    """A sweep key names a setting of the variant, or a per-run world key of its scenario that none of the swept
+    world groups sets."""
+    if key.startswith("world."):
+        name, own = key.removeprefix("world."), scenario.per_run_defaults()
+        if name not in own:
+            takes = f"its per-run keys: {', '.join(own)}" if own else f"the {scenario.kind} world takes none"
+            raise ConfigError(file, where, f"'{key}' is not a per-run world key ({takes})")
+        clash = [g for g, world in groups.items() if name in world]
+        if clash:
+            raise ConfigError(file, where, f"'{key}' is also set by world group(s) {clash}, which would not differ in it: "
+                              "sweep it in groups that do not set it (--gnss, sweep.groups)")
+    elif _get(settings, _path(key)) is _MISSING:
+        raise ConfigError(file, where, f"'{key}' is not a setting of variant '{variant}' (an observer field, or a path "
+                          f"under observer., controller. or world.)")
+
+
 def _path(key: str) -> list[str]:
-    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…`` as given."""
+    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…``/``world.…``
+    as given."""
     parts = key.split(".")
-    return parts if parts[0] in ("observer", "controller") else ["observer", *parts]
+    return parts if parts[0] in ("observer", "controller", "world") else ["observer", *parts]
 
 
 def _get(doc: dict, path: list[str]):

@@ -58,12 +58,14 @@ def resolved_yaml(exp) -> str:
     return yaml.safe_dump(exp.model_dump(mode="json"), sort_keys=False, allow_unicode=True)
 
 
-def model_assumptions(worlds: dict) -> list[str]:
+def model_assumptions(worlds: dict, variants=()) -> list[str]:
     """What the worlds' own settings assume (each world's ``assumptions()``: a DP model mismatch, where an ROV world's
-    observers start), as manifest lines naming the worlds that share each."""
+    observers start, with the per-run world keys the ``variants`` set), as manifest lines naming the worlds that
+    share each."""
+    per_run = {key for v in variants for key in v.world}
     shared: dict[str, list[str]] = {}
     for w in worlds.values():
-        for text in w.assumptions():
+        for text in w.assumptions(per_run):
             shared.setdefault(text, []).append(w.name)
     return [f"scenario{'s' * (len(names) > 1)} {', '.join(names)}: {text}" for text, names in shared.items()]
 
@@ -102,7 +104,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
                 **_steps(worlds),
                 max_observer_rate=result.max_rate,
                 wall_time_s=round(result.wall_time, 3),
-                assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + model_assumptions(worlds)
+                assumptions=STANDARD_ASSUMPTIONS[worlds[exp.scenario_names[0]].kind] + model_assumptions(worlds, exp.variants)
                 + list(exp.assumptions),
                 designs=result.designs,
                 claims=manifest_entries(claims),
@@ -141,6 +143,6 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
             seed=exp.seed, seeds=exp.seeds, runs=len(exp.variants) * exp.seeds, params=params, grid=grid,
             horizon=exp.scenario.horizon, dt=exp.scenario.dt, **run_info,
             total_time_s=round(time.perf_counter() - started, 3),
-            assumptions=model_assumptions({"": exp.scenario}) + list(base.assumptions),
+            assumptions=model_assumptions({"": exp.scenario}, exp.variants) + list(base.assumptions),
             claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
     return claims, mapped
