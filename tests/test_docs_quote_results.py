@@ -121,6 +121,22 @@ def _sweep_ratios(sweep: str, param: str) -> list[float]:
     return [depth.min(), depth.max(), yaw.min(), yaw.max()]
 
 
+def _crossings(sweep: str, param: str, dof: str, levels=(0.8, 1.0)) -> list[float]:
+    """Where CDO over EO (ratio of the mean RMSE against the truth) first reaches each of ``levels`` along a committed
+    observer sweep's parameter, linear between its points."""
+    m = _metrics(sweep)
+    m = m[(m.metric == "rmse_each") & (m.param == param) & (m.status == "ok")]
+    means = m.groupby(["param_value", "signal"])["value"].mean().unstack("signal")
+    ratio = (means[f"{dof}_cdo"] / means[f"{dof}_eo"]).to_numpy()
+    x = means.index.to_numpy()
+    out = []
+    for level in levels:
+        i = int(np.argmax(ratio >= level))
+        assert 0 < i and ratio[i] >= level, f"{sweep}: {dof} ratio never crosses {level}"
+        out.append(float(np.interp(level, ratio[i - 1:i + 1], x[i - 1:i + 1])))
+    return out
+
+
 def _table3() -> dict[str, list[float]]:
     """Table III: our Liu rows over the paper's (lowest, highest ratio over their twelve cells), and the proposed
     d = 0.05 row over our Liu eps = 0.1's (lowest, highest over the six errors)."""
@@ -321,6 +337,12 @@ QUOTES = [
           lambda: _fig2_ratios(OBS)),
     Quote("docs/tijjani.md", "for every EO ε in [0.02, 0.3] s (CDO over EO {}–{} in depth, {}–{} in yaw)",
           lambda: _sweep_ratios(f"{OBS0}_sweep_5seeds", "eo_eps")),
+    Quote("docs/tijjani.md", "the truth reaches 0.8 at {} cm and 1 at {} cm in depth, 0.8 at {}° and 1 at {}° in yaw",
+          lambda: [x * cm for x in _crossings(f"{OBS0}_sweep_5seeds", "offset_depth", "depth")]
+          + _crossings(f"{OBS0}_sweep_5seeds", "offset_yaw", "yaw")),
+    Quote("README.md", "(CDO over EO reaches 1 at {} cm and {}°)",
+          lambda: [_crossings(f"{OBS0}_sweep_5seeds", "offset_depth", "depth", (1.0,))[0] * cm,
+                   _crossings(f"{OBS0}_sweep_5seeds", "offset_yaw", "yaw", (1.0,))[0]]),
     Quote("README.md", "(largest error over 0.1–2 s: {} vs {} cm, {} vs {} rad)",
           lambda: [mean(OBS, "cdo", "depth", "peak_output", scale=cm), mean(OBS, "eo", "depth", "peak_output", scale=cm),
                    mean(OBS, "cdo", "yaw", "peak_output"), mean(OBS, "eo", "yaw", "peak_output")]),
