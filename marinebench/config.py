@@ -513,7 +513,11 @@ class Experiment(BaseModel):
                 continue
             start, end = m.window(horizon) if m.kind == "j_tot" else (m.t_start, m.t_end or horizon)
             if start >= min(end, horizon):
-                raise ValueError(f"metrics.{i}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of {horizon:g} s")
+                hint = ""
+                if m.kind != "j_tot" and "t_start" not in m.model_fields_set:
+                    hint = f" (t_start defaults to {m.t_start:g} s: set metrics.{i}.t_start)"
+                raise ValueError(f"metrics.{i}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of "
+                                 f"{horizon:g} s{hint}")
 
     def _check_table(self, names: list[str], kinds: list[str]) -> None:
         """The table's metrics are the experiment's (or observer diagnostics); its ``relative`` pair and the

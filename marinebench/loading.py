@@ -25,7 +25,7 @@ from pydantic import ValidationError
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment, Variant
 from marinebench.controllers.spec import check_built as check_controller
 from marinebench.errors import ConfigError
-from marinebench.keypaths import key_path, unknown_key_hint
+from marinebench.keypaths import did_you_mean, key_path, near_misses, unknown_key_hint
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import resolve_source, split_source
@@ -471,10 +471,11 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
 def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
     """Per-run world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, values within
     the bounds of its own fields (e.g. no negative noise level)."""
-    unknown = set(world) - set(allowed := scenario.per_run_defaults())
+    unknown = sorted(set(world) - set(allowed := list(scenario.per_run_defaults())))
     if unknown:
-        takes = f"allowed: {list(allowed)}" if allowed else f"the {scenario.kind} world takes none"
-        raise ConfigError(file, key, f"unknown per-run world keys {sorted(unknown)} ({takes})")
+        near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in near_misses(u, allowed))))
+        takes = near or (f" (allowed: {allowed})" if allowed else f" (the {scenario.kind} world takes none)")
+        raise ConfigError(file, key, f"unknown per-run world keys {unknown}{takes}")
     try:
         scenario.check_per_run(world)
     except ValidationError as exc:
