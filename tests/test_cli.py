@@ -130,8 +130,8 @@ BAD = {
                              "metrics.0: metric 'std' window [10, 20] s is empty in a run of 4 s"),
     # the same from t_start's default, which the message names
     "window_from_default_start": (lambda d: (d["metrics"][0].pop("t_start", None), d["metrics"][0].pop("t_end", None)),
-                                  "metrics.0: metric 'std' window [5, 4] s is empty in a run of 4 s (t_start defaults to "
-                                  "5 s: set metrics.0.t_start)"),
+                                  ("metrics.0: metric 'std' window [5, 4] s is empty in a run of 4 s (t_start defaults to "
+                                   "5 s: set metrics.0.t_start)")),
     "observer_of_another_world": (lambda d: d["variants"][0].update(observer={"kind": "cdo"}),
                                   ("variants.0.observer.kind: 'cdo' does not apply to scenario kind open_loop_asv "
                                    "(its observers: bejarano, custom, liu_eso, npo, resetting_fto)")),
