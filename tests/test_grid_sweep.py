@@ -59,6 +59,13 @@ def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range(
                                          "sweep.params.delta.trend=null", "sweep.params.k.range=[0.0, 0.7]",
                                          "sweep.params.k.probes=[0.0]", "sweep.claims=[]"])
     assert (tuning(ends, "delta"), tuning(ends, "k")) == (2.5, 0.7)
+    # the ROV observers' settings and per-run world keys: the variant's own, else its scenario's
+    observers = ROOT / "configs" / "tijjani_observers.yaml"
+    rov, _ = load_experiment(observers)
+    assert [tuning(rov, p) for p in ("lmi_decay", "theta", "eo_eps", "offset_depth", "offset_yaw")] == [0.35, 24.39, 0.041, 0.05, 10.0]
+    rov, _ = load_experiment(observers, sets=["variants[cdo].world={estimate_offset_yaw_deg: 2.0}",
+                                              "variants[cdo].observer.cdo={theta: 30.0}"])
+    assert (tuning(rov, "offset_yaw"), tuning(rov, "theta")) == (2.0, 30.0)
 
 
 def test_heat_map_cells_are_centred_on_the_grid_values():

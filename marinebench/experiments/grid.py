@@ -48,8 +48,9 @@ def _axes(metrics: pd.DataFrame) -> tuple[str, str]:
 
 
 def tuning(exp: Experiment, param: str) -> float | None:
-    """The swept variant's own value of a sweep parameter, if it is a number inside the range; None when the
-    parameter has ``fixed`` settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
+    """The swept variant's own value of a sweep parameter (of a ``world.<key>``, or of the ROV observers' settings:
+    the variant's, else its scenario's), if it is a number inside the range; None when the parameter has ``fixed`` settings (they change
+    what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
     from marinebench.experiments.sweep import _get, _path
 
     ps = exp.sweep.params[param]
@@ -57,7 +58,13 @@ def tuning(exp: Experiment, param: str) -> float | None:
         return None
     base = next(v for v in exp.variants if v.name == exp.sweep.variant)
     path = _path(ps.key)
-    value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
+    scenario = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario
+    if path[0] == "world":
+        value = base.world.get(path[1], scenario.per_run_defaults().get(path[1]))
+    else:
+        value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
+    if value is None and path[0] == "observer" and len(path) == 3 and path[1] in ("cdo", "eo"):
+        value = getattr(base.observer.resolve(scenario)[path[1] == "eo"], path[2], None)  # the scenario's CDO/EO
     if value is None and path[0] == "controller" and len(path) == 3 and path[1] in ("depth", "yaw"):
         value = getattr(base.controller.gains()[("depth", "yaw").index(path[1])], path[2], None)  # Table II's default
     return float(value) if isinstance(value, int | float) and ps.range[0] <= value <= ps.range[1] else None
