@@ -16,6 +16,13 @@ def _kinds_of(union) -> dict[str, str]:
     return out
 
 
+def _per_run(scenario: type) -> str:
+    """' Per run (world:, world.<key> sweeps): a, b.' for a scenario kind whose runs may set world keys of their own
+    (its defaults need no file: ``model_construct`` fills them without the required fields)."""
+    keys = list(scenario.model_construct().per_run_defaults())
+    return f" Per run (world:, world.<key> sweeps): {', '.join(keys)}." if keys else ""
+
+
 def kinds() -> dict[str, dict[str, str]]:
     from marinebench.config import ObserverTuning
     from marinebench.dp_scenario import DpScenario, Event
@@ -29,7 +36,8 @@ def kinds() -> dict[str, dict[str, str]]:
     from marinebench.sensors.noise import Noise
 
     return {
-        "scenarios": {**_kinds_of(Scenario), **_kinds_of(DpScenario), **_kinds_of(RovScenario)},
+        "scenarios": {kind: doc + _per_run(cls) for cls in (Scenario, DpScenario, RovScenario)
+                      for kind, doc in _kinds_of(cls).items()},
         "vessels": {**_kinds_of(CyberShip2Params), **_kinds_of(SupplyParams), **_kinds_of(LeonardLikeParams)},
         "observers": {kind: f"{doc} [{', '.join(scenario_kinds_for(kind))}]" for kind, doc in _kinds_of(ObserverTuning).items()},
         "controllers": {"rise": "RISE (Fischer et al. 2014), rov_tracking scenarios",
