@@ -480,7 +480,7 @@ def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -
         scenario.check_per_run(world)
     except ValidationError as exc:
         err = exc.errors()[0]
-        raise ConfigError(file, f"{key}.{err['loc'][0]}", err["msg"]) from None
+        raise ConfigError(file, f"{key}.{err['loc'][0]}", err["msg"].removeprefix("Value error, ")) from None
 
 
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:

@@ -12,7 +12,7 @@ from collections.abc import Collection
 from typing import ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
 
 from marinebench.batch import columns
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
@@ -53,6 +53,25 @@ class Disturbances(BaseModel):
 class Sensors(BaseModel):
     model_config = STRICT
     position_noise: Noise = Field(default_factory=NoNoise, description="noise on the measured x, y")
+
+
+class AsvPerRun(BaseModel):
+    """The open-loop ASV world's per-run settings (a variant's ``world:``, ``world.<key>`` sweeps), checked against
+    the scenario named ``scenario`` (``noisy``: whether it has position noise to scale)."""
+
+    model_config = STRICT
+    scenario: str
+    noisy: bool
+    position_noise_scale: float = Field(
+        1.0, ge=0, description="multiplies the position noise (its amplitude and bound; 0: the noise-free twin)")
+
+    @field_validator("position_noise_scale")
+    @classmethod
+    def _noise_to_scale(cls, scale: float, info: ValidationInfo) -> float:
+        if scale != 1.0 and not info.data["noisy"]:
+            raise ValueError(f"scenario '{info.data['scenario']}' has no position noise to scale (its "
+                             "sensors.position_noise is none)")
+        return scale
 
 
 class ScenarioBase(BaseModel):
@@ -108,6 +127,14 @@ class Scenario(ScenarioBase):
     disturbances: Disturbances = Field(default_factory=Disturbances)
     sensors: Sensors = Field(default_factory=Sensors)
 
+    def per_run_defaults(self) -> dict[str, float]:
+        """Per-run world keys: a multiplier of the position noise (e.g. a sweep of the noise level)."""
+        return {"position_noise_scale": 1.0}
+
+    def check_per_run(self, world: dict[str, float]) -> None:
+        """A noise scale is not negative, and other than 1 only where there is noise to scale."""
+        AsvPerRun.model_validate({"scenario": self.name, "noisy": self.sensors.position_noise.kind != "none", **world})
+
 
 def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Generator]:
     """One generator per seed index for the named random stream."""
@@ -118,7 +145,8 @@ def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Gene
 class OpenLoopASV:
     """Batched open-loop CyberShip II world; run ``b`` uses seed ``seed_of_run[b]``."""
 
-    def __init__(self, scenario: Scenario, root_seed: int, seed_of_run: np.ndarray) -> None:
+    def __init__(self, scenario: Scenario, root_seed: int, seed_of_run: np.ndarray,
+                 per_run: dict[str, np.ndarray] | None = None) -> None:
         self.scenario = scenario
         self.plant = CyberShip2(scenario.vessel)
         seeds = sorted({int(s) for s in seed_of_run})
@@ -134,6 +162,8 @@ class OpenLoopASV:
         self.tau_wr = signal("tau_wr", scenario.disturbances.tau_wr)
         noise = scenario.sensors.position_noise.sample(stream_rngs(root_seed, seeds, "position_noise"), 2)
         self.noise: NoiseBatch | None = noise.take(where) if noise is not None else None
+        scale = (per_run or {}).get("position_noise_scale")  # (B,) when a variant sets it: each run's noise multiplier
+        self.noise_scale = None if scale is None else np.asarray(scale, dtype=float)[:, None]
         B = len(seed_of_run)
         self.x0 = np.tile(np.array(scenario.initial.eta + scenario.initial.nu, dtype=float), (B, 1))
         self._zeros = np.zeros(B)
@@ -154,7 +184,7 @@ class OpenLoopASV:
         """y = eta + n (eq. 8), heading noiseless (Assumption 3)."""
         y = x[:, :3].copy()
         if self.noise is not None:
-            y[:, :2] += self.noise(t)
+            y[:, :2] += self.noise(t) if self.noise_scale is None else self.noise_scale * self.noise(t)
         return y
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -529,7 +529,7 @@ def test_list_shows_registered_kinds():
     scenarios = kinds()["scenarios"]  # with the world keys their runs may set
     assert scenarios["dp_supply"].endswith("Per run (world:, world.<key> sweeps): gnss_sigma, heading_sigma_deg.")
     assert "estimate_offset_depth, estimate_offset_yaw_deg, depth_noise" in scenarios["rov_tracking"]
-    assert "Per run" not in scenarios["open_loop_asv"]
+    assert scenarios["open_loop_asv"].endswith("Per run (world:, world.<key> sweeps): position_noise_scale.")
 
 
 def test_list_takes_groups():

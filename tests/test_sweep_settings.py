@@ -10,7 +10,7 @@ from marinebench.cli import app
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
 from marinebench.experiments.sweep import sweep_experiment
-from marinebench.loading import load_experiment, preflight
+from marinebench.loading import load_checked, load_experiment, preflight
 
 from .conftest import ROOT
 
@@ -86,6 +86,31 @@ def test_sweeps_of_per_run_world_keys_set_each_points_world():
     assert not any("except" in a for a in model_assumptions({"": base.scenario}, base.variants))
 
 
+def test_the_asv_position_noise_scales_per_run():
+    """``position_noise_scale`` 0 on the noisy world gives exactly its noise-free twin (the same excitation), 1 exactly
+    the default; a scale on a world without noise, or a negative one, is refused at the variant's key."""
+    fig45 = ROOT / "configs" / "bejarano_fig4_5.yaml"
+    sets = ["scenarios.noisy.horizon=8", "scenarios.noise_free.horizon=8", "seeds=2", "figures=[]", "claims=[]"]
+
+    def std(*more):
+        exp, _ = load_experiment(fig45, [*sets, *more])
+        m = run(exp, traces=False).metrics
+        return m[m.variant == "proposed_dp3"].set_index(["scenario", "seed", "signal"])["value"].sort_index()
+
+    default = std()
+    silent = std("variants[proposed_dp3].world={position_noise_scale: 0.0}", "variants[proposed_dp3].scenarios=[noisy]")
+    np.testing.assert_array_equal(silent.loc["noisy"], default.loc["noise_free"])
+    once = std("variants[proposed_dp3].world={position_noise_scale: 1.0}")
+    np.testing.assert_array_equal(once, default)
+    with pytest.raises(ConfigError, match=r"variants\.1\.world\.position_noise_scale: scenario 'noise_free' has no "
+                                          r"position noise to scale \(its sensors\.position_noise is none\)"):
+        load_checked(fig45, [*sets, "variants[proposed_dp3].world={position_noise_scale: 2.0}"])
+    with pytest.raises(ConfigError, match=r"variants\.1\.world\.position_noise_scale: Input should be greater than or "
+                                          r"equal to 0"):
+        load_checked(fig45, [*sets, "variants[proposed_dp3].world={position_noise_scale: -1.0}",
+                             "variants[proposed_dp3].scenarios=[noisy]"])
+
+
 def test_bad_world_sweep_keys_are_config_errors():
     def refused(config, sets, param, match):
         base, _ = load_experiment(config, sets)
@@ -103,7 +128,7 @@ def test_bad_world_sweep_keys_are_config_errors():
             r"sweep\.params\.k\.key: 'world\.gnss_sigma' is also set by world group\(s\) \['dgnss', 'dualband'\]")
     table4 = ROOT / "configs" / "bejarano_table4.yaml"
     refused(table4, ["sweep.params.k_omega.key=world.gnss_sigma"], "k_omega",
-            r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(the open_loop_asv world takes none\)")
+            r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: position_noise_scale\)")
 
 
 def test_bad_sweep_and_observer_settings_are_config_errors():

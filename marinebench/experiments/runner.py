@@ -103,7 +103,7 @@ def per_run_world(exp: Experiment, run_variant: np.ndarray) -> dict[str, np.ndar
 def make_world(exp: Experiment, run_variant: np.ndarray, run_seed: np.ndarray):
     sc = exp.scenario
     if sc.kind == "open_loop_asv":
-        return OpenLoopASV(sc, exp.seed, run_seed)
+        return OpenLoopASV(sc, exp.seed, run_seed, per_run_world(exp, run_variant))
     if sc.kind == "rov_tracking":
         specs = {}
         for b, v in enumerate(run_variant):
