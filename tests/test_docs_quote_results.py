@@ -137,6 +137,19 @@ def _crossings(sweep: str, param: str, dof: str, levels=(0.8, 1.0)) -> list[floa
     return out
 
 
+def _noise_grid(signal: str) -> list[float]:
+    """Bejarano Figs 4-5 grid: the error of δp = 3 over δp = 0.5 without noise and at the full noise, and the noise
+    scale at which the ratio is 1 (linear between the grid's slices)."""
+    m = _metrics("bejarano_fig4_5_sweep_grid_delta_p1_noise_scale_5seeds")
+    m = m[(m.metric == "std") & (m.signal == signal) & (m.status == "ok")]
+    means = m.groupby(["param2_value", "param_value"])["value"].mean().unstack("param_value")
+    ratio = means[means.columns.max()] / means[means.columns.min()]
+    x, y = ratio.index.to_numpy(), ratio.to_numpy()
+    i = int(np.argmax(y >= 1.0))
+    assert 0 < i and np.all(np.diff(y) > 0), f"{signal}: the ratio does not rise through 1 along the noise"
+    return [y[0], y[-1], float(np.interp(1.0, y[i - 1:i + 1], x[i - 1:i + 1]))]
+
+
 def _table3() -> dict[str, list[float]]:
     """Table III: our Liu rows over the paper's (lowest, highest ratio over their twelve cells), and the proposed
     d = 0.05 row over our Liu eps = 0.1's (lowest, highest over the six errors)."""
@@ -337,6 +350,13 @@ QUOTES = [
           lambda: _fig2_ratios(OBS)),
     Quote("docs/tijjani.md", "for every EO ε in [0.02, 0.3] s (CDO over EO {}–{} in depth, {}–{} in yaw)",
           lambda: _sweep_ratios(f"{OBS0}_sweep_5seeds", "eo_eps")),
+    Quote("docs/bejarano.md", "goes, from no noise to the full noise, from {} to {} in e_u (1 at {} of the noise)",
+          lambda: _noise_grid("u")),
+    Quote("docs/bejarano.md", "from {} to\n  {} in e_v (1 at {})", lambda: _noise_grid("v")),
+    Quote("README.md", "a faster δp lowers e_u below\n  {} of the noise and raises e_σu only above {}",
+          lambda: [_noise_grid("u")[2], _noise_grid("sigma_u")[2]]),
+    Quote("docs/bejarano.md", "from {} to {} in e_σu (1 at {})", lambda: _noise_grid("sigma_u")),
+    Quote("docs/bejarano.md", "from {} to {} in e_σv (1 at {}; linear", lambda: _noise_grid("sigma_v")),
     Quote("docs/tijjani.md", "the truth reaches 0.8 at {} cm and 1 at {} cm in depth, 0.8 at {}° and 1 at {}° in yaw",
           lambda: [x * cm for x in _crossings(f"{OBS0}_sweep_5seeds", "offset_depth", "depth")]
           + _crossings(f"{OBS0}_sweep_5seeds", "offset_yaw", "yaw")),
