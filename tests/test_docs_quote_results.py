@@ -137,17 +137,23 @@ def _crossings(sweep: str, param: str, dof: str, levels=(0.8, 1.0)) -> list[floa
     return out
 
 
-def _noise_grid(signal: str) -> list[float]:
-    """Bejarano Figs 4-5 grid: the error of δp = 3 over δp = 0.5 without noise and at the full noise, and the noise
-    scale at which the ratio is 1 (linear between the grid's slices)."""
-    m = _metrics("bejarano_fig4_5_sweep_grid_delta_p1_noise_scale_5seeds")
+def _noise_grid(signal: str, sweep: str = "bejarano_fig4_5_sweep_grid_delta_p1_noise_scale_5seeds",
+                at: float = 3.0, vs: float = 0.5) -> list[float]:
+    """A Bejarano tuning x position-noise grid: the error at tuning ``at`` over that at ``vs`` without noise and at
+    the full noise (scale 1), and the noise scale at which the ratio is 1 (linear between the grid's slices)."""
+    m = _metrics(sweep)
     m = m[(m.metric == "std") & (m.signal == signal) & (m.status == "ok")]
     means = m.groupby(["param2_value", "param_value"])["value"].mean().unstack("param_value")
-    ratio = means[means.columns.max()] / means[means.columns.min()]
+    column = {c: means.columns[np.argmin(np.abs(np.log(means.columns / c)))] for c in (at, vs)}
+    assert all(np.isclose(column[c], c) for c in column), f"{sweep}: {at} or {vs} is not on the grid"
+    ratio = means[column[at]] / means[column[vs]]
     x, y = ratio.index.to_numpy(), ratio.to_numpy()
     i = int(np.argmax(y >= 1.0))
     assert 0 < i and np.all(np.diff(y) > 0), f"{signal}: the ratio does not rise through 1 along the noise"
-    return [y[0], y[-1], float(np.interp(1.0, y[i - 1:i + 1], x[i - 1:i + 1]))]
+    return [y[0], float(ratio.loc[np.isclose(x, 1.0)].iloc[0]), float(np.interp(1.0, y[i - 1:i + 1], x[i - 1:i + 1]))]
+
+
+FIG7_GRID = "bejarano_fig7_sweep_grid_k_omega_noise_scale_n13_5seeds"
 
 
 def _table3() -> dict[str, list[float]]:
@@ -355,8 +361,15 @@ QUOTES = [
     Quote("docs/bejarano.md", "from {} to\n  {} in e_v (1 at {})", lambda: _noise_grid("v")),
     Quote("README.md", "a faster δp lowers e_u below\n  {} of the noise and raises e_σu only above {}",
           lambda: [_noise_grid("u")[2], _noise_grid("sigma_u")[2]]),
+    Quote("README.md", "Fig. 7's best sway at kω = 100 needs at most {} of it", lambda: [_noise_grid("v", FIG7_GRID, 100.0, 10.0)[2]]),
     Quote("docs/bejarano.md", "from {} to {} in e_σu (1 at {})", lambda: _noise_grid("sigma_u")),
     Quote("docs/bejarano.md", "from {} to {} in e_σv (1 at {}; linear", lambda: _noise_grid("sigma_v")),
+    Quote("docs/bejarano.md", "its e_v is below kω = 10's up to {} of our noise, below kω = 1's up to {} and below\n  kω = 0.1's up to {}",
+          lambda: [_noise_grid("v", FIG7_GRID, 100.0, vs)[2] for vs in (10.0, 1.0, 0.1)]),
+    Quote("docs/bejarano.md", "(over kω = 10's: {} without noise, {} at the full noise)",
+          lambda: _noise_grid("v", FIG7_GRID, 100.0, 10.0)[:2]),
+    Quote("docs/bejarano.md", "Fig. 5's σ half needs at least {} of our noise, Fig. 7's best kω = 100 at most {}",
+          lambda: [_noise_grid("sigma_u")[2], _noise_grid("v", FIG7_GRID, 100.0, 10.0)[2]]),
     Quote("docs/tijjani.md", "the truth reaches 0.8 at {} cm and 1 at {} cm in depth, 0.8 at {}° and 1 at {}° in yaw",
           lambda: [x * cm for x in _crossings(f"{OBS0}_sweep_5seeds", "offset_depth", "depth")]
           + _crossings(f"{OBS0}_sweep_5seeds", "offset_yaw", "yaw")),
