@@ -111,6 +111,15 @@ def test_the_asv_position_noise_scales_per_run():
                              "variants[proposed_dp3].scenarios=[noisy]"])
 
 
+def test_a_world_key_swept_in_one_group_replaces_the_groups_value():
+    """Torben's GNSS groups set gnss_sigma: swept in one group (--gnss dgnss), the swept value replaces the group's."""
+    fig3 = ROOT / "configs" / "torben_fig3.yaml"
+    base, _ = load_experiment(fig3, ["sweep.params.k.key=world.gnss_sigma"])
+    exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 10.0, fig3)
+    assert [v.world["gnss_sigma"] for v in exp.variants] == [0.0, 0.5, 1.0]
+    assert {v.tags["gnss"] for v in exp.variants} == {"dgnss"}
+
+
 def test_bad_world_sweep_keys_are_config_errors():
     def refused(config, sets, param, match):
         base, _ = load_experiment(config, sets)
@@ -125,7 +134,8 @@ def test_bad_world_sweep_keys_are_config_errors():
             r"sweep\.params\.theta: theta=-0\.001: Input should be greater than or equal to 0")
     fig3 = ROOT / "configs" / "torben_fig3.yaml"
     refused(fig3, ["sweep.params.k.key=world.gnss_sigma"], "k",
-            r"sweep\.params\.k\.key: 'world\.gnss_sigma' is also set by world group\(s\) \['dgnss', 'dualband'\]")
+            r"sweep\.params\.k\.key: 'world\.gnss_sigma' is also set by world group\(s\) \['dgnss', 'dualband'\], which "
+            r"would not differ in it: sweep it in one group \(--gnss NAME\)")
     table4 = ROOT / "configs" / "bejarano_table4.yaml"
     refused(table4, ["sweep.params.k_omega.key=world.gnss_sigma"], "k_omega",
             r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: position_noise_scale\)")

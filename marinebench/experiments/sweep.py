@@ -140,7 +140,7 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
     """The variants of one sweep axis (one parameter) or of a grid (two): ``base``'s settings with each swept
     parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group.
     A run's per-run world settings are the variant's own, then its group's, then the sweep's ``world.<key>`` values
-    (a key that a swept group also sets is refused: the groups would not differ in it)."""
+    (a key that a group sets is refused when several groups are swept: they would not differ in it)."""
     settings = base.model_dump(include={"observer", "controller"}, exclude_none=True) | {"world": {}}
     for p in axes:
         ps = spec.params[p]
@@ -186,9 +186,9 @@ def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: di
             takes = f"its per-run keys: {', '.join(own)}" if own else f"the {scenario.kind} world takes none"
             raise ConfigError(file, where, f"'{key}' is not a per-run world key ({takes})")
         clash = [g for g, world in groups.items() if name in world]
-        if clash:
+        if clash and len(groups) > 1:
             raise ConfigError(file, where, f"'{key}' is also set by world group(s) {clash}, which would not differ in it: "
-                              "sweep it in groups that do not set it (--gnss, sweep.groups)")
+                              "sweep it in one group (--gnss NAME), whose value it replaces, or in groups that do not set it")
     elif _get(settings, _path(key)) is _MISSING:
         raise ConfigError(file, where, f"'{key}' is not a setting of variant '{variant}' (an observer field, or a path "
                           f"under observer., controller. or world.)")
