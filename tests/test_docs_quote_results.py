@@ -156,6 +156,16 @@ def _noise_grid(signal: str, sweep: str = "bejarano_fig4_5_sweep_grid_delta_p1_n
 FIG7_GRID = "bejarano_fig7_sweep_grid_k_omega_noise_scale_n13_5seeds"
 
 
+def _eps_over_noise() -> list[float]:
+    """Torben's c_ε x GNSS-noise grid: J(c_ε = 5) / J(c_ε = 0.1) on each noise slice (5 interpolated in log, as the
+    sweep's probes are), lowest and highest."""
+    m = _metrics("torben_fig3_sweep_grid_eps_gnss_sigma_dgnss_set-991959b4_5seeds")
+    m = m[(m.metric == "J_tot") & (m.status == "ok")]
+    means = m.groupby(["param2_value", "param_value"])["value"].mean().unstack("param_value")
+    ratios = [np.interp(np.log(5.0), np.log(means.columns.to_numpy()), row) / row[0] for row in means.to_numpy()]
+    return [min(ratios), max(ratios)]
+
+
 def _table3() -> dict[str, list[float]]:
     """Table III: our Liu rows over the paper's (lowest, highest ratio over their twelve cells), and the proposed
     d = 0.05 row over our Liu eps = 0.1's (lowest, highest over the six errors)."""
@@ -370,6 +380,7 @@ QUOTES = [
           lambda: _noise_grid("v", FIG7_GRID, 100.0, 10.0)[:2]),
     Quote("docs/bejarano.md", "Fig. 5's σ half needs at least {} of our noise, Fig. 7's best kω = 100 at most {}",
           lambda: [_noise_grid("sigma_u")[2], _noise_grid("v", FIG7_GRID, 100.0, 10.0)[2]]),
+    Quote("docs/torben.md", "from 0.05 to 3 m: J(5)/J(0.1) stays between {} and {}, so", _eps_over_noise),
     Quote("docs/tijjani.md", "the truth reaches 0.8 at {} cm and 1 at {} cm in depth, 0.8 at {}° and 1 at {}° in yaw",
           lambda: [x * cm for x in _crossings(f"{OBS0}_sweep_5seeds", "offset_depth", "depth")]
           + _crossings(f"{OBS0}_sweep_5seeds", "offset_yaw", "yaw")),
