@@ -170,7 +170,6 @@ class DpScenario(ScenarioBase):
         return [f"plant {self.vessel.kind}, observers designed and run on {self.model.kind} (model mismatch)"]
 
 
-
 class DpWorld:
     """Batched DP world; run ``b`` uses seed ``seed_of_run[b]`` and per-run sensor overrides."""
 

@@ -49,8 +49,8 @@ def _axes(metrics: pd.DataFrame) -> tuple[str, str]:
 
 def tuning(exp: Experiment, param: str) -> float | None:
     """The swept variant's own value of a sweep parameter (of a ``world.<key>``, or of the ROV observers' settings:
-    the variant's, else its scenario's), if it is a number inside the range; None when the parameter has ``fixed`` settings (they change
-    what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
+    the variant's, else its scenario's), if it is a number inside the range; None when the parameter has ``fixed``
+    settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
     from marinebench.experiments.sweep import _get, _path
 
     ps = exp.sweep.params[param]

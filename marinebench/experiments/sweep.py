@@ -142,9 +142,9 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
     A run's per-run world settings are the variant's own, then its group's, then the sweep's ``world.<key>`` values
     (a key that a group sets is refused when several groups are swept: they would not differ in it)."""
     settings = base.model_dump(include={"observer", "controller"}, exclude_none=True) | {"world": {}}
+    swept_groups = {g: spec.groups[g] for g in groups}
     for p in axes:
         ps = spec.params[p]
-        swept_groups = {g: spec.groups[g] for g in groups}
         _check_key(settings, ps.key, base.name, scenario, swept_groups, file, f"sweep.params.{p}.key")
         for key, value in ps.fixed.items():
             if key.startswith("world."):
@@ -178,8 +178,8 @@ _MISSING = object()
 
 
 def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: dict[str, dict], file: Path, where: str) -> None:
-    """A sweep key names a setting of the variant, or a per-run world key of its scenario that none of the swept
-    world groups sets."""
+    """A sweep key names a setting of the variant, or a per-run world key of its scenario that no group sets when
+    several ``groups`` are swept."""
     if key.startswith("world."):
         name, own = key.removeprefix("world."), scenario.per_run_defaults()
         if name not in own:
