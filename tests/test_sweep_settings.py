@@ -1,5 +1,7 @@
-"""Sweeps of any setting of a variant: controller gains, the ROV observers' settings (per run), and one
+"""Sweeps of any setting of a variant: controller gains, the ROV observers' settings and per-run world keys, and one
 scenario of a multi-scenario experiment."""
+
+import json
 
 import numpy as np
 import pandas as pd
@@ -168,6 +170,22 @@ def test_cli_sweeps_a_rov_observer_setting(tmp_path):
     assert cdo["param_value"].tolist() == pytest.approx([0.05, 1.0])
     assert cdo["value"].iloc[0] != cdo["value"].iloc[1]
     assert (tmp_path / "tijjani_observers_sweep_lmi_decay_n2_6s" / "figures" / "sweep.png").exists()
+
+
+def test_compare_pairs_two_variants_sweeps_point_by_point(tmp_path):
+    """docs/commands.md: one sweep per variant (--set sweep.variant) gives cells that compare pairs by point and seed."""
+    for variant in ("cdo", "eo"):
+        res = CliRunner().invoke(app, ["sweep", "offset_yaw", "--config", str(OBSERVERS), "--n", "2", "--horizon", "6",
+                                       "--seeds", "2", "--set", f"sweep.variant={variant}", "--out", str(tmp_path / variant),
+                                       "--quiet"])
+        assert res.exit_code == 0, res.output
+    (a,), (b,) = (list((tmp_path / v).iterdir()) for v in ("cdo", "eo"))
+    res = CliRunner().invoke(app, ["compare", str(a), str(b), "--metric", "rmse", "--format", "json"])
+    report = json.loads(res.output)
+    assert report["paired"] and report["renamed"].startswith("Compared as one experiment")
+    assert {c["variant"] for c in report["cells"]} == {"offset_yaw_000_default", "offset_yaw_001_default"}
+    assert all(c["n"] == 2 and c["unpaired"] == 0 for c in report["cells"])
+    assert any(c["verdict"] != "same" for c in report["cells"])  # the EO-fed loop differs from the CDO-fed one
 
 
 def test_sweep_horizon_shorter_than_a_metric_window_is_one_line(tmp_path):
