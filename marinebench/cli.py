@@ -103,14 +103,16 @@ def _sweep_config(config: Path) -> None:
              "run from the repository's root or pass --config FILE")
 
 
-def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None):
-    """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key."""
+def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None,
+          sweep_params: bool = True):
+    """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key (``sweep_params``:
+    see :func:`~marinebench.loading.load_checked`)."""
     from marinebench.loading import load_checked
 
     options = {"seed": seed, "seeds": seeds}
     sets = list(sets) + [f"{key}={value}" for key, value in options.items() if value is not None]
     try:
-        return load_checked(config, sets, profile)
+        return load_checked(config, sets, profile, sweep_params)
     except ConfigError as exc:  # the options are applied last, as --sets: name the option that was typed
         if exc.file == "--set" and options.get(exc.key) is not None:
             raise ConfigError(f"--{exc.key}", "", exc.message) from None
@@ -367,7 +369,7 @@ def sweep(
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     with one_line_errors():
-        base, _ = _load(config, set_ or [], seed, seeds)
+        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False)  # the requested ones are checked below
         exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
         from marinebench.loading import preflight
 
@@ -453,7 +455,7 @@ def bench(
 
     _sweep_config(config)
     with one_line_errors():
-        base, _ = _load(config, [], None, None)
+        base, _ = _load(config, [], None, None, sweep_params=False)
         if base.scenario is None or base.scenario.kind != "dp_supply":
             raise ConfigError(config, "scenario.kind", "bench compares the batched engine with the plain per-run "
                               "reference of the DP observers, which exists for dp_supply scenarios (e.g. configs/torben_fig3.yaml)")

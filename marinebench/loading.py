@@ -379,12 +379,15 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
     return exp, origins
 
 
-def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = None) -> tuple[Experiment, dict]:
+def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = None,
+                 sweep_params: bool = True) -> tuple[Experiment, dict]:
     """:func:`load_experiment`, then :func:`preflight`: an experiment ready to run, and the files it came from
-    (what ``marinebench run`` and :func:`marinebench.load` do before simulating)."""
+    (what ``marinebench run`` and :func:`marinebench.load` do before simulating). ``sweep_params=False`` leaves the
+    sweep's parameters to the sweep command, which checks the ones it is asked for (``--set sweep.variant`` may
+    leave the others without a setting to vary)."""
     exp, origins = load_experiment(path, sets, profile)
     try:
-        preflight(exp, Path(path))
+        preflight(exp, Path(path), sweep_params)
     except ConfigError as exc:  # a design that fails for a value a --set or a scenario file gave: name that
         if exc.file == str(path) and (source := _origin_of(exc.key, origins)) != origins[""]:
             raise ConfigError(source, exc.key, exc.message) from None
@@ -392,20 +395,27 @@ def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = N
     return exp, origins
 
 
-def preflight(exp: Experiment, file: Path) -> None:
+def preflight(exp: Experiment, file: Path, sweep_params: bool = True) -> None:
     """Solve every variant's observer design and check the step before anything runs, so an infeasible
     LMI or a too-large dt is a config error naming the file and key; check the per-run world settings of the
-    variants and of the sweep's groups."""
+    variants and of the sweep's groups, and (``sweep_params``) that each sweep parameter's key and ``fixed`` settings
+    name settings of the swept variant, valid at both ends of its range (its points are built, not designed or run)."""
     if exp.sweep is not None:
         swept = exp.part(exp.sweep_scenario()).scenario if exp.scenarios is not None else exp.scenario
         for group, world in exp.sweep.groups.items():
             _check_world(swept, world, file, f"sweep.groups.{group}")
     if exp.scenarios is None:
-        return _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
-    position = {v.name: i for i, v in enumerate(exp.variants)}
-    for name in exp.scenarios:
-        part = exp.part(name)
-        _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
+        _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
+    else:
+        position = {v.name: i for i, v in enumerate(exp.variants)}
+        for name in exp.scenarios:
+            part = exp.part(name)
+            _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
+    if exp.sweep is not None and sweep_params:  # after the variants: what is left wrong is the sweep's own
+        from marinebench.experiments.sweep import sweep_experiment
+
+        # in one group: a world key that the groups set may still be swept in one of them (--gnss NAME)
+        sweep_experiment(exp, list(exp.sweep.params), list(exp.sweep.groups)[:1], 2, None, file)
 
 
 @contextmanager

@@ -172,6 +172,32 @@ def test_cli_sweeps_a_rov_observer_setting(tmp_path):
     assert (tmp_path / "tijjani_observers_sweep_lmi_decay_n2_6s" / "figures" / "sweep.png").exists()
 
 
+@pytest.mark.parametrize("sets, expected", [
+    (["sweep.params.theta.key=world.nope"], "sweep.params.theta.key: 'world.nope' is not a per-run world key"),
+    (["sweep.params.theta.key=observer.cdo_theta"], ("sweep.params.theta.key: 'observer.cdo_theta' is not a setting of "
+                                                     "variant 'cdo'")),
+    (["sweep.params.offset_yaw.key=world.yaw_noise_deg", "sweep.params.offset_yaw.range=[-1, 1]",
+      "sweep.params.offset_yaw.probes=[]"], "sweep.params.offset_yaw: offset_yaw=-1: Input should be greater than or equal to 0"),
+])
+def test_validate_checks_the_sweep_section(sets, expected):
+    """A sweep parameter that names no setting, or whose range leaves the setting's bounds, fails `validate` (and `run`),
+    not only `sweep`."""
+    res = CliRunner().invoke(app, ["validate", str(OBSERVERS), *[a for s in sets for a in ("--set", s)]])
+    assert res.exit_code == 2 and res.output.startswith(f"error: --set: {expected}"), res.output
+    assert len(res.output.strip().splitlines()) == 1
+
+
+def test_a_sweep_of_another_variant_checks_only_the_parameters_it_sweeps(tmp_path):
+    """With --set sweep.variant=rise, Table III's S+RISE gains name no RISE setting; sweeping only the world key
+    added beside them still runs (validate, which checks every parameter, refuses the same config)."""
+    sets = ["--set", "sweep.params.yaw_noise={key: world.yaw_noise_deg, range: [0.005, 0.2]}", "--set", "sweep.variant=rise"]
+    res = CliRunner().invoke(app, ["sweep", "yaw_noise", "--config", str(TABLE3), "--n", "2", "--horizon", "4",
+                                   "--seeds", "1", "--out", str(tmp_path), "--quiet", *sets])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(app, ["validate", str(TABLE3), *sets])
+    assert res.exit_code == 2 and "sweep.params.yaw_alpha: yaw_alpha=0.5: yaw: unknown rise gain(s) ['alpha']" in res.output
+
+
 def test_compare_pairs_two_variants_sweeps_point_by_point(tmp_path):
     """docs/commands.md: one sweep per variant (--set sweep.variant) gives cells that compare pairs by point and seed."""
     for variant in ("cdo", "eo"):
