@@ -315,7 +315,8 @@ def sweep(
     params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time (from the config's sweep.params)")],
     config: SweepConfig = DEFAULT_SWEEP,
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
-    gnss: Annotated[str | None, typer.Option(metavar="GROUPS", help="comma-separated world groups (default: all)")] = None,
+    gnss: Annotated[str | None, typer.Option("--gnss", "--groups", metavar="GROUPS", help="comma-separated world groups of "
+                                             "sweep.groups (default: all; --gnss after Torben's two GNSS models)")] = None,
     horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep.../ (default: results/)")] = None,
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,

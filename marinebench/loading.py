@@ -414,7 +414,7 @@ def preflight(exp: Experiment, file: Path, sweep_params: bool = True) -> None:
     if exp.sweep is not None and sweep_params:  # after the variants: what is left wrong is the sweep's own
         from marinebench.experiments.sweep import sweep_experiment
 
-        # in one group: a world key that the groups set may still be swept in one of them (--gnss NAME)
+        # in one group: a world key that the groups set may still be swept in one of them (--groups NAME)
         sweep_experiment(exp, list(exp.sweep.params), list(exp.sweep.groups)[:1], 2, None, file)
 
 

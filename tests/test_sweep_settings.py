@@ -114,12 +114,22 @@ def test_the_asv_position_noise_scales_per_run():
 
 
 def test_a_world_key_swept_in_one_group_replaces_the_groups_value():
-    """Torben's GNSS groups set gnss_sigma: swept in one group (--gnss dgnss), the swept value replaces the group's."""
+    """Torben's GNSS groups set gnss_sigma: swept in one group (--groups dgnss), the swept value replaces the group's."""
     fig3 = ROOT / "configs" / "torben_fig3.yaml"
     base, _ = load_experiment(fig3, ["sweep.params.k.key=world.gnss_sigma"])
     exp = sweep_experiment(base, ["k"], ["dgnss"], 3, 10.0, fig3)
     assert [v.world["gnss_sigma"] for v in exp.variants] == [0.0, 0.5, 1.0]
     assert {v.tags["gnss"] for v in exp.variants} == {"dgnss"}
+
+
+def test_groups_is_the_gnss_options_other_name(tmp_path):
+    """`--groups` names the world groups as `--gnss` does (the folder and the runs are the same)."""
+    for option in ("--gnss", "--groups"):
+        res = CliRunner().invoke(app, ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), option, "dgnss",
+                                       "--n", "2", "--horizon", "20", "--out", str(tmp_path / option), "--quiet"])
+        assert res.exit_code == 0, res.output
+    a, b = (tmp_path / o / "torben_fig3_sweep_k_dgnss_n2_20s" / "metrics.csv" for o in ("--gnss", "--groups"))
+    assert a.read_text() == b.read_text()
 
 
 def test_bad_world_sweep_keys_are_config_errors():
@@ -137,7 +147,7 @@ def test_bad_world_sweep_keys_are_config_errors():
     fig3 = ROOT / "configs" / "torben_fig3.yaml"
     refused(fig3, ["sweep.params.k.key=world.gnss_sigma"], "k",
             r"sweep\.params\.k\.key: 'world\.gnss_sigma' is also set by world group\(s\) \['dgnss', 'dualband'\], which "
-            r"would not differ in it: sweep it in one group \(--gnss NAME\)")
+            r"would not differ in it: sweep it in one group \(--groups NAME\)")
     table4 = ROOT / "configs" / "bejarano_table4.yaml"
     refused(table4, ["sweep.params.k_omega.key=world.gnss_sigma"], "k_omega",
             r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: position_noise_scale\)")

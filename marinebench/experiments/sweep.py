@@ -188,7 +188,7 @@ def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: di
         clash = [g for g, world in groups.items() if name in world]
         if clash and len(groups) > 1:
             raise ConfigError(file, where, f"'{key}' is also set by world group(s) {clash}, which would not differ in it: "
-                              "sweep it in one group (--gnss NAME), whose value it replaces, or in groups that do not set it")
+                              "sweep it in one group (--groups NAME), whose value it replaces, or in groups that do not set it")
     elif _get(settings, _path(key)) is _MISSING:
         raise ConfigError(file, where, f"'{key}' is not a setting of variant '{variant}' (an observer field, or a path "
                           f"under observer., controller. or world.)")
