@@ -121,6 +121,13 @@ def _sweep_ratios(sweep: str, param: str) -> list[float]:
     return [depth.min(), depth.max(), yaw.min(), yaw.max()]
 
 
+def _reaches(x: np.ndarray, y: np.ndarray, level: float, what: str) -> float:
+    """Where the curve ``y(x)`` first reaches ``level``, linear between its points (not at the first point)."""
+    i = int(np.argmax(y >= level))
+    assert 0 < i and y[i] >= level, f"{what}: the ratio never crosses {level}"
+    return float(np.interp(level, y[i - 1:i + 1], x[i - 1:i + 1]))
+
+
 def _crossings(sweep: str, param: str, dof: str, levels=(0.8, 1.0)) -> list[float]:
     """Where CDO over EO (ratio of the mean RMSE against the truth) first reaches each of ``levels`` along a committed
     observer sweep's parameter, linear between its points."""
@@ -129,12 +136,7 @@ def _crossings(sweep: str, param: str, dof: str, levels=(0.8, 1.0)) -> list[floa
     means = m.groupby(["param_value", "signal"])["value"].mean().unstack("signal")
     ratio = (means[f"{dof}_cdo"] / means[f"{dof}_eo"]).to_numpy()
     x = means.index.to_numpy()
-    out = []
-    for level in levels:
-        i = int(np.argmax(ratio >= level))
-        assert 0 < i and ratio[i] >= level, f"{sweep}: {dof} ratio never crosses {level}"
-        out.append(float(np.interp(level, ratio[i - 1:i + 1], x[i - 1:i + 1])))
-    return out
+    return [_reaches(x, ratio, level, f"{sweep}: {dof}") for level in levels]
 
 
 def _noise_grid(signal: str, sweep: str = "bejarano_fig4_5_sweep_grid_delta_p1_noise_scale_5seeds",
@@ -148,9 +150,8 @@ def _noise_grid(signal: str, sweep: str = "bejarano_fig4_5_sweep_grid_delta_p1_n
     assert all(np.isclose(column[c], c) for c in column), f"{sweep}: {at} or {vs} is not on the grid"
     ratio = means[column[at]] / means[column[vs]]
     x, y = ratio.index.to_numpy(), ratio.to_numpy()
-    i = int(np.argmax(y >= 1.0))
-    assert 0 < i and np.all(np.diff(y) > 0), f"{signal}: the ratio does not rise through 1 along the noise"
-    return [y[0], float(ratio.loc[np.isclose(x, 1.0)].iloc[0]), float(np.interp(1.0, y[i - 1:i + 1], x[i - 1:i + 1]))]
+    assert np.all(np.diff(y) > 0), f"{signal}: the ratio does not rise along the noise"
+    return [y[0], float(ratio.loc[np.isclose(x, 1.0)].iloc[0]), _reaches(x, y, 1.0, f"{sweep}: {signal}")]
 
 
 FIG7_GRID = "bejarano_fig7_sweep_grid_k_omega_noise_scale_n13_5seeds"
