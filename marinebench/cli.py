@@ -104,18 +104,20 @@ def _sweep_config(config: Path) -> None:
 
 
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None,
-          sweep_params: bool = True):
+          sweep_params: bool = True, variants: str | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key (``sweep_params``:
-    see :func:`~marinebench.loading.load_checked`)."""
+    see :func:`~marinebench.loading.load_checked`; ``variants``: ``sweep --variants``, comma-separated)."""
     from marinebench.loading import load_checked
 
-    options = {"seed": seed, "seeds": seeds}
-    sets = list(sets) + [f"{key}={value}" for key, value in options.items() if value is not None]
+    options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds),
+               "sweep.variants": ("--variants", variants and f"[{variants}]")}
+    sets = list(sets) + [f"{key}={value}" for key, (_, value) in options.items() if value is not None]
     try:
         return load_checked(config, sets, profile, sweep_params)
     except ConfigError as exc:  # the options are applied last, as --sets: name the option that was typed
-        if exc.file == "--set" and options.get(exc.key) is not None:
-            raise ConfigError(f"--{exc.key}", "", exc.message) from None
+        key = next((k for k in options if exc.key == k or exc.key.startswith(f"{k}.")), None)
+        if exc.file == "--set" and key is not None and options[key][1] is not None:
+            raise ConfigError(options[key][0], "", exc.message) from None
         raise
 
 
@@ -317,6 +319,9 @@ def sweep(
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option("--gnss", "--groups", metavar="GROUPS", help="comma-separated world groups of "
                                              "sweep.groups (default: all; --gnss after Torben's two GNSS models)")] = None,
+    variants: Annotated[str | None, typer.Option(metavar="NAMES", help="comma-separated variants swept side by side, one curve "
+                                                  "each (default: sweep.variant); each parameter's key must be a setting of "
+                                                  "every one, e.g. a world.<key>")] = None,
     horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep.../ (default: results/)")] = None,
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,
@@ -370,7 +375,7 @@ def sweep(
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     with one_line_errors():
-        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False)  # the requested ones are checked below
+        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False, variants=variants)  # params checked below
         exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
         from marinebench.loading import preflight
 
@@ -403,7 +408,7 @@ def sweep(
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
-            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", chunk_size=chunk_size, chunks_run=ran,
+            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept, chunk_size=chunk_size, chunks_run=ran,
             executor=executor, wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
         )
     except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder

@@ -280,7 +280,11 @@ class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
     model_config = STRICT
-    variant: str = Field(..., description="the variant whose settings are swept")
+    variant: str = Field(..., description="the variant whose settings are swept (and whose curves sweep.claims are about)")
+    variants: list[str] | None = Field(
+        None, min_length=1, description="several variants swept side by side, one curve each (default: variant alone; "
+        "`sweep --variants`): every parameter's key must be a setting of each, e.g. a world.<key>",
+    )
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario the sweep runs on "
                                  "(default: the variant's first)")
     params: dict[str, SweepParam] = Field(..., min_length=1)
@@ -319,6 +323,11 @@ class SweepSpec(BaseModel):
     def shown(self) -> list[str]:
         """The metrics tabulated and plotted: ``metrics``, or ``metric`` alone."""
         return self.metrics or [self.metric]
+
+    @property
+    def swept(self) -> list[str]:
+        """The variants swept: ``variants``, or ``variant`` alone."""
+        return self.variants or [self.variant]
 
 
 class EngineOptions(BaseModel):
@@ -452,12 +461,15 @@ class Experiment(BaseModel):
         return self
 
     def _check_study_sweep(self, have: str) -> None:
-        """A study's sweep runs on one of its scenarios, with a variant that runs there."""
+        """A study's sweep runs on one of its scenarios, with variants that run there."""
         name = self.sweep_scenario()
         if name not in self.scenarios:
             raise ValueError(f"sweep.scenario: unknown scenario '{name}' (have: {have})")
-        if self.sweep.variant not in {v.name for v in self.part(name).variants}:
-            raise ValueError(f"sweep.variant '{self.sweep.variant}' does not run on scenario '{name}'")
+        there, known = {v.name for v in self.part(name).variants}, {v.name for v in self.variants}
+        for key, names in (("variant", [self.sweep.variant]), ("variants", self.sweep.variants or [])):
+            missing = [v for v in names if v in known and v not in there]  # unknown names: the scenario's check
+            if missing:
+                raise ValueError(f"sweep.{key}: {', '.join(map(repr, missing))} does not run on scenario '{name}'")
 
     @property
     def scenario_names(self) -> list[str]:
@@ -568,6 +580,12 @@ class Experiment(BaseModel):
         """The sweep's variant is one of the experiment's, and the metrics it shows are among its metrics."""
         if self.sweep.variant not in names:
             raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
+        unknown = [v for v in self.sweep.variants or [] if v not in names]
+        if unknown:
+            raise ValueError(f"sweep.variants: unknown variants {unknown} (have: {', '.join(names)})")
+        twice = sorted({v for v in self.sweep.variants or [] if self.sweep.variants.count(v) > 1})
+        if twice:
+            raise ValueError(f"sweep.variants: {twice} given more than once")
         for metric in self.sweep.shown:
             if metric not in kinds:
                 raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")

@@ -167,7 +167,7 @@ def test_bad_sweep_and_observer_settings_are_config_errors():
         sweep_experiment(base, ["yaw_k0"], None, 2, 1.0, TABLE3)
     with pytest.raises(ConfigError, match=r"sweep\.scenario: unknown scenario 'S9'"):
         load_experiment(TABLE3, ["sweep.scenario=S9"])
-    with pytest.raises(ConfigError, match=r"sweep\.variant 'srise' does not run on scenario 'S3'"):
+    with pytest.raises(ConfigError, match=r"sweep\.variant: 'srise' does not run on scenario 'S3'"):
         load_experiment(TABLE3, ["sweep.scenario=S3"])
 
 

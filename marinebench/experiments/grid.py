@@ -26,6 +26,7 @@ from matplotlib.colors import LogNorm
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
+from marinebench.experiments.sweep import _get, _path, curve_heading, curves_of, sweep_claims
 from marinebench.results.claims import Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import simulated_on
 
@@ -33,10 +34,10 @@ Surfaces = dict[tuple[str, str], pd.DataFrame]
 
 
 def grid_surfaces(metrics: pd.DataFrame, metric: str, signals: list[str] | None = None) -> Surfaces:
-    """The seed-mean KPI per (group, signal): rows ``param_value``, columns ``param2_value`` (sorted); NaN where
-    every seed of a point diverged (diverged runs are left out of the mean)."""
-    df = metrics[(metrics["metric"] == metric) & (metrics["signal"].isin(signals) if signals else True)].copy()
-    df.loc[df["status"] != "ok", "value"] = np.nan
+    """The seed-mean KPI per (curve, signal) (``sweep.curves_of``: the world group, or the variant): rows
+    ``param_value``, columns ``param2_value`` (sorted); NaN where every seed of a point diverged (diverged runs are
+    left out of the mean)."""
+    df = curves_of(metrics, metric, signals)
     order = [{v: i for i, v in enumerate(dict.fromkeys(df[c]))} for c in ("gnss", "signal")]
     groups = sorted(df.groupby(["gnss", "signal"], sort=False), key=lambda kd: [o[k] for o, k in zip(order, kd[0])])
     return {key: d.pivot_table(index="param_value", columns="param2_value", values="value", aggfunc="mean", dropna=False)
@@ -47,16 +48,14 @@ def _axes(metrics: pd.DataFrame) -> tuple[str, str]:
     return str(metrics["param"].iloc[0]), str(metrics["param2"].iloc[0])
 
 
-def tuning(exp: Experiment, param: str) -> float | None:
-    """The swept variant's own value of a sweep parameter (of a ``world.<key>``, or of the ROV observers' settings:
-    the variant's, else its scenario's), if it is a number inside the range; None when the parameter has ``fixed``
-    settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
-    from marinebench.experiments.sweep import _get, _path
-
+def tuning(exp: Experiment, param: str, variant: str | None = None) -> float | None:
+    """The swept variant's (or ``variant``'s) own value of a sweep parameter (of a ``world.<key>``, or of the ROV
+    observers' settings: the variant's, else its scenario's), if it is a number inside the range; None when the
+    parameter has ``fixed`` settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
     ps = exp.sweep.params[param]
     if ps.fixed:
         return None
-    base = next(v for v in exp.variants if v.name == exp.sweep.variant)
+    base = next(v for v in exp.variants if v.name == (variant or exp.sweep.variant))
     path = _path(ps.key)
     scenario = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario
     if path[0] == "world":
@@ -90,7 +89,7 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str =
              + simulated_on(model), ""]
     if not surfaces:
         return "\n".join([*lines, f"No values of metric '{metric}'.", ""])
-    group = "group" if set(spec.groups) == {"default"} else "gnss"
+    group = curve_heading(metrics, spec)
     summary = [f"| {group} | signal | lowest | at {p1} | at {p2} | highest | spread along {p1} | spread along {p2} |",
                "|---|---|---|---|---|---|---|---|"]
     blocks = []
@@ -118,12 +117,14 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str =
 
 def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
     """One heat map per metric (rows) and group and signal (columns): the seed-mean KPI over the grid on a log
-    colour scale, its lowest point starred, the swept variant's own tuning marked ×."""
+    colour scale, its lowest point starred, the swept variant's own tuning (each variant's, when several were swept)
+    marked ×."""
     p1, p2 = _axes(metrics)
     per_metric = {metric: grid_surfaces(metrics, metric, exp.sweep.signals) for metric in shown}
     cols = max(len(s) for s in per_metric.values())
     fig, axes = plt.subplots(len(shown), cols, figsize=(4.6 * cols, 3.8 * len(shown)), squeeze=False)
-    own = (tuning(exp, p1), tuning(exp, p2))
+    own = {v: (tuning(exp, p1, v), tuning(exp, p2, v)) for v in exp.sweep.swept}
+    several = "sweep_variant" in metrics.columns  # then a panel's curve is named after its variant first
     for row, (metric, surfaces) in enumerate(per_metric.items()):
         for ax in axes[row, len(surfaces):]:
             ax.axis("off")
@@ -139,8 +140,10 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):  # a flat surface has no lowest point
                 i, j = np.unravel_index(np.nanargmin(values), values.shape)
                 ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
-            if None not in own:
-                ax.plot(own[1], own[0], "x", color="red", ms=9, mew=2, label=f"{exp.sweep.variant} ({own[0]:g}, {own[1]:g})")
+            variant = g.split("/")[0] if several else exp.sweep.variant
+            if None not in own[variant]:
+                y, x = own[variant]
+                ax.plot(x, y, "x", color="red", ms=9, mew=2, label=f"{variant} ({y:g}, {x:g})")
             for axis, p in (("x", p2), ("y", p1)):
                 if exp.sweep.params[p].spacing == "log":
                     getattr(ax, f"set_{axis}scale")("log")
@@ -182,8 +185,6 @@ _SWAP = {"param": "param2", "param2": "param", "param_value": "param2_value", "p
 def grid_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[GridClaim]:
     """Each claim about one of the grid's parameters, checked as in a one-at-a-time sweep
     (:func:`~marinebench.experiments.sweep.sweep_claims`) on every slice of the other parameter, in its order."""
-    from marinebench.experiments.sweep import sweep_claims
-
     p1, p2 = _axes(metrics)
     out = []
     for claim in spec.claims:

@@ -46,12 +46,16 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``,
     ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``). A grid sweep adds ``_grid`` and its two
     parameters in the order given (``_sweep_grid_k_eps``), ``_n<N>`` when not :data:`GRID_N` points per axis.
+    Variants swept side by side (``sweep.variants``, ``--variants``) are named joined by ``+`` after the
+    parameters (``_sweep_noise_scale_liu_eps0.1+proposed_d2.2``).
     ``exp`` is the config's experiment (its ``sweep`` section and seeds)."""
     spec = exp.sweep
     if grid:
         tags = ["grid", *params]
     else:
         tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
+    if len(spec.swept) > 1:
+        tags.append("+".join(spec.swept))
     if groups and set(groups) < set(spec.groups):
         tags += [g for g in spec.groups if g in groups]
     if n is not None and n != (GRID_N if grid else spec.n):
@@ -96,10 +100,11 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides, grid)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     groups = _checked_request(spec, params, groups, grid, file)
-    base = next(v for v in exp.variants if v.name == spec.variant)
+    several = len(spec.swept) > 1
     n = n or (GRID_N if grid else spec.n)
-    variants = [v for axes in ([params] if grid else [[p] for p in params])
-                for v in _points(spec, base, axes, groups, n, file, exp.scenario)]
+    variants = [v for base in (next(v for v in exp.variants if v.name == name) for name in spec.swept)
+                for axes in ([params] if grid else [[p] for p in params])
+                for v in _points(spec, base, axes, groups, n, file, exp.scenario, several)]
     scenario = exp.scenario if horizon is None else _with_horizon(exp, horizon, file)
     return exp.model_copy(update={"variants": variants, "figures": [], "table": None, "sweep": None, "name": name,
                                   "scenario": scenario})
@@ -136,11 +141,13 @@ def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | Non
 
 
 def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], n: int, file: Path,
-            scenario: Any) -> list[Variant]:
+            scenario: Any, several: bool = False) -> list[Variant]:
     """The variants of one sweep axis (one parameter) or of a grid (two): ``base``'s settings with each swept
     parameter's ``fixed`` settings applied, at every combination of the axes' ``n`` values, in every world group.
     A run's per-run world settings are the variant's own, then its group's, then the sweep's ``world.<key>`` values
-    (a key that a group sets is refused when several groups are swept: they would not differ in it)."""
+    (a key that a group sets is refused when several groups are swept: they would not differ in it). When
+    ``several`` variants are swept side by side, each point is named after ``base`` too and tagged
+    ``sweep_variant`` (a column of metrics.csv)."""
     settings = base.model_dump(include={"observer", "controller"}, exclude_none=True) | {"world": {}}
     swept_groups = {g: spec.groups[g] for g in groups}
     for p in axes:
@@ -160,12 +167,15 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
         tags = {"param": axes[0], "param_value": values[0]}
         if len(axes) == 2:
             tags |= {"param2": axes[1], "param2_value": values[1]}
+        if several:
+            tags |= {"sweep_variant": base.name}
         for g in groups:
             world = base.world | spec.groups[g] | point["world"]
             try:
                 scenario.check_per_run(world)
                 variants.append(Variant.model_validate({
-                    **point, "name": "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
+                    **point, "name": (f"{base.name}_" if several else "")
+                    + "_".join(f"{p}_{i:03d}" for p, i in zip(axes, index)) + f"_{g}",
                     "world": world, "tags": tags | {"gnss": g}}))
             except ValidationError as exc:
                 at = ", ".join(f"{p}={v:g}" for p, v in zip(axes, values))
@@ -222,11 +232,40 @@ def _set(doc: dict, path: list[str], value) -> None:
 Curves = dict[tuple[str, str, str], pd.DataFrame]
 
 
-def _per_seed_curves(metrics: pd.DataFrame, metric: str, signals: list[str] | None = None) -> Curves:
-    """The KPI per (param, group, signal), in sweep order: rows are the parameter values (sorted), columns
-    the seeds; NaN where a run diverged. ``signals`` restricts the metric's signals (default: all)."""
+def curves_of(metrics: pd.DataFrame, metric: str, signals: list[str] | None) -> pd.DataFrame:
+    """The rows of one metric (``signals``: some of its signals, default all), diverged runs' values NaN, with the
+    ``gnss`` column naming the curve each run is on: its world group, or when several variants were swept side
+    by side, the variant (``sweep_variant``) and, unless it is the only ``default`` one, the group (``eo``,
+    ``npo/dgnss``)."""
     df = metrics[(metrics["metric"] == metric) & (metrics["signal"].isin(signals) if signals else True)].copy()
     df.loc[df["status"] != "ok", "value"] = np.nan
+    if "sweep_variant" in df.columns:
+        df["gnss"] = df["sweep_variant"].where(df["gnss"] == "default", df["sweep_variant"] + "/" + df["gnss"])
+    return df
+
+
+def curve_heading(metrics: pd.DataFrame, spec: SweepSpec | None) -> str:
+    """The table column naming :func:`curves_of`'s curves: ``gnss`` (the world groups; ``group`` when the sweep has
+    none named), or ``variant`` (``variant/gnss``) when several variants were swept side by side."""
+    default = spec is not None and set(spec.groups) == {"default"}
+    if "sweep_variant" in metrics.columns:
+        return "variant" if default else "variant/gnss"
+    return "group" if default else "gnss"
+
+
+def own_runs(metrics: pd.DataFrame, spec: SweepSpec) -> pd.DataFrame:
+    """The runs of ``sweep.variant`` (what the sweep's claims are about) when several variants were swept side by
+    side; all runs otherwise."""
+    if "sweep_variant" not in metrics.columns:
+        return metrics
+    return metrics[metrics["sweep_variant"] == spec.variant].drop(columns="sweep_variant")
+
+
+def _per_seed_curves(metrics: pd.DataFrame, metric: str, signals: list[str] | None = None) -> Curves:
+    """The KPI per (param, curve, signal), in sweep order: rows are the parameter values (sorted), columns
+    the seeds; NaN where a run diverged. ``signals`` restricts the metric's signals (default: all); the curves
+    are :func:`curves_of`'s."""
+    df = curves_of(metrics, metric, signals)
     order = [{v: i for i, v in enumerate(dict.fromkeys(df[c]))} for c in ("param", "gnss", "signal")]
     groups = sorted(df.groupby(["param", "gnss", "signal"], sort=False), key=lambda kd: [o[k] for o, k in zip(order, kd[0])])
     return {key: d.pivot(index="param_value", columns="seed", values="value").sort_index() for key, d in groups}
@@ -253,8 +292,7 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
     Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first.
     ``model``: the simulated vessel model (``Experiment.model_label``), named under the heading."""
     curves = _per_seed_curves(metrics, metric, spec.signals if spec else None)
-    # the group column (metrics.csv's `gnss`) is headed `group` when the sweep has no named world groups
-    group = "group" if spec is not None and set(spec.groups) == {"default"} else "gnss"
+    group = curve_heading(metrics, spec)
     if not curves:
         return f"## Sweep: {metric} vs each parameter\n\nNo values of metric '{metric}'.\n"
     n_seeds = max(c.shape[1] for c in curves.values())
@@ -272,7 +310,7 @@ def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = Non
         lines.append(f"| {p} | {g} | {sig} | {len(m)} | {m.min():.4g} | {m.idxmin():.4g} | {m.max():.4g} | "
                      f"{m.idxmax():.4g} | {diverged} |")
     if spec is not None:
-        lines += _probe_section(curves, spec, metric, group) + _trend_section(curves, spec, group) + _groups_section(curves)
+        lines += _probe_section(curves, spec, metric, group) + _trend_section(curves, spec, group) + _groups_section(curves, group, spec)
     return "\n".join(lines) + "\n"
 
 
@@ -316,26 +354,51 @@ def _trend_section(curves: Curves, spec: SweepSpec, group: str) -> list[str]:
             "|---|---|---|---|---|---|", *rows]
 
 
-def _groups_section(curves: Curves) -> list[str]:
-    """Each world group's mean curve over the first group's, point by point (when more than one group ran)."""
+def _groups_section(curves: Curves, heading: str, spec: SweepSpec) -> list[str]:
+    """Each curve's mean over each earlier curve's, point by point (when more than one world group, or variant, ran),
+    and where the ratio crosses 1; ``heading``: :func:`curve_heading`."""
     groups = list(dict.fromkeys(g for _, g, _ in curves))
     if len(groups) < 2:
         return []
-    lines = ["", "### Between groups", "", f"Ratio of the mean curves, point by point, against `{groups[0]}`.", "",
-             "| param | signal | ratio | min | at value | max | at value |", "|---|---|---|---|---|---|---|"]
+    against = f"`{groups[0]}`" if len(groups) == 2 else "each earlier one (in the order run)"
+    lines = ["", f"### Between {'variants' if heading.startswith('variant') else 'groups'}", "",
+             (f"Ratio of the mean curves, point by point, against {against}; it crosses 1 (the curves are equal) at "
+              "the values listed, linear between points (in the log of the value for log spacing)."), "",
+             "| param | signal | ratio | min | at value | max | at value | equal at |", "|---|---|---|---|---|---|---|---|"]
     for p, sig in dict.fromkeys((p, sig) for p, _, sig in curves):
-        for g in groups[1:]:
-            if (p, g, sig) in curves and (p, groups[0], sig) in curves:
-                r = curves[p, g, sig].mean(axis=1) / curves[p, groups[0], sig].mean(axis=1)
-                cells = ("– | – | – | –" if r.isna().all()  # every run of one group diverged
-                         else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g}")
-                lines.append(f"| {p} | {sig} | {g} / {groups[0]} | {cells} |")
+        log = p in spec.params and spec.params[p].spacing == "log"
+        for i, g in enumerate(groups):
+            for ref in groups[:i]:
+                if (p, g, sig) not in curves or (p, ref, sig) not in curves:
+                    continue
+                r = curves[p, g, sig].mean(axis=1) / curves[p, ref, sig].mean(axis=1)
+                equal = ", ".join(f"{v:.4g}" for v in crossings(r.index.to_numpy(dtype=float), r.to_numpy(), log=log))
+                cells = ("– | – | – | – | –" if r.isna().all()  # every run of one group diverged
+                         else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} | {equal or '–'}")
+                lines.append(f"| {p} | {sig} | {g} / {ref} | {cells} |")
     return lines
 
 
+def crossings(x: np.ndarray, y: np.ndarray, level: float = 1.0, log: bool = False) -> list[float]:
+    """Where the curve ``y(x)`` (x ascending) crosses ``level``: each pair of neighbouring finite points on either side
+    of it (or a point on it) gives one value, linear between them (in ``log(x)`` with ``log``)."""
+    ok = np.isfinite(y)
+    x, d = x[ok], y[ok] - level
+    u = np.log(x) if log else x
+    found = []
+    for i in range(len(d)):
+        if d[i] == 0:
+            found.append(float(x[i]))
+        elif i + 1 < len(d) and d[i] * d[i + 1] < 0:
+            at = u[i] + (u[i + 1] - u[i]) * d[i] / (d[i] - d[i + 1])
+            found.append(float(np.exp(at) if log else at))
+    return found
+
+
 def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
-    """Check the sweep's claims on each group's curves; claims about a parameter not swept this time are left out."""
-    results = []
+    """Check the sweep's claims on each group's curves of ``sweep.variant``; claims about a parameter (or a variant)
+    not swept this time are left out."""
+    results, metrics = [], own_runs(metrics, spec)
     for claim in spec.claims:
         if claim.param not in set(metrics["param"]):
             continue
@@ -397,16 +460,23 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
 
 
 def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
-    """Fig. 3 layout: one panel per parameter (and a column per metric of ``shown``), the KPI against the value,
-    one curve per group (and signal, when there are several): the mean over seeds, with the seeds' range shaded
-    when there are several."""
+    """Fig. 3 layout: one panel per parameter (and a column per metric of ``shown``, and per signal when several
+    curves share each), the KPI against the value, one curve per curve of :func:`curves_of` (group or variant; and
+    signal, when there are several and one curve each): the mean over seeds, with the seeds' range shaded when
+    there are several."""
     per_metric = {metric: _per_seed_curves(metrics, metric, exp.sweep.signals) for metric in shown}
     params = list(dict.fromkeys(p for curves in per_metric.values() for p, _, _ in curves))
-    rows, cols = max(1, len(params)), len(shown)
+    columns = []  # (metric, its curves in the panel, the signals they show)
+    for metric, curves in per_metric.items():
+        signals = list(dict.fromkeys(sig for _, _, sig in curves))  # in the metrics' order (u, v, sigma_u, ...)
+        if len({g for _, g, _ in curves}) > 1 and len(signals) > 1:  # several curves a signal: a column each
+            columns += [(metric, {k: c for k, c in curves.items() if k[2] == sig}, [sig]) for sig in signals]
+        else:
+            columns.append((metric, curves, signals))
+    rows, cols = max(1, len(params)), len(columns)
     fig, axes = plt.subplots(rows, cols, figsize=(7 if cols == 1 else 5 * cols, 2.6 * rows), squeeze=False)
-    for col, (metric, curves) in enumerate(per_metric.items()):
-        n_groups, signals = len({g for _, g, _ in curves}), sorted({sig for _, _, sig in curves})
-        n_signals = len(signals)
+    for col, (metric, curves, signals) in enumerate(columns):
+        n_groups, n_signals = len({g for _, g, _ in curves}), len(signals)
         # one signal: name it on the axis (the table's "e_v"); the J_tot state "z" needs no name
         ylabel = metric if n_signals > 1 or signals == ["z"] else f"{metric} (e_{signals[0]})"
         for ax, p in zip(axes[:, col], params):

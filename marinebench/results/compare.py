@@ -369,15 +369,29 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
 def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
                      paired: bool = True) -> pd.DataFrame:
     """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed (unpaired:
-    as independent samples)."""
+    as independent samples). In a sweep of several variants side by side (``sweep --variants``), point by point:
+    the cells are the sweep's points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics)
+    column = "sweep_variant" if "sweep_variant" in df.columns else "variant"
     for v in (a, b):
-        if v not in set(df["variant"]):
-            raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df['variant'])))})")
+        if v not in set(df[column]):
+            raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df[column])))})")
     keys = ["experiment", "scenario", "signal", "metric"]
-    out = compare_frames(df[df["variant"] == a], df[df["variant"] == b], tol, keys, paired)
-    out.insert(2, "variant", f"{b} vs {a}")
+    if column == "sweep_variant":
+        df = df.assign(point=_points(df))
+        keys.insert(2, "point")
+    out = compare_frames(df[df[column] == a], df[df[column] == b], tol, keys, paired)
+    out.insert(2, "variant", [f"{p}: {b} vs {a}" for p in out.pop("point")] if "point" in out else f"{b} vs {a}")
     return out
+
+
+def _points(df: pd.DataFrame) -> list[str]:
+    """Each sweep run's point: its parameter value(s), and its world group unless that is the only ``default``
+    (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``)."""
+    grid = "param2" in df.columns
+    return [f"{p}={v:g}" + (f", {p2}={v2:g}" if grid else "") + ("" if g == "default" else f", {g}")
+            for p, v, p2, v2, g in zip(df["param"], df["param_value"], df["param2"] if grid else df["param"],
+                                       df["param2_value"] if grid else df["param_value"], df["gnss"])]
 
 
 def headline(table: pd.DataFrame) -> str:

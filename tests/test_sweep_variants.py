@@ -1,0 +1,123 @@
+"""Several variants swept side by side (``sweep --variants``, ``sweep.variants``): one curve each, their ratios and
+where they cross, claims about ``sweep.variant`` only, and ``compare --variants`` point by point."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.config import SweepSpec
+from marinebench.experiments.sweep import crossings, sweep_claims, sweep_table
+
+from .conftest import ROOT
+from .conftest import md_row as row
+
+TABLE4 = ROOT / "configs" / "bejarano_table4.yaml"
+NOISE = ["--set", "sweep.params.noise={key: world.position_noise_scale, range: [0.0, 2.0]}"]
+
+
+def test_crossings_are_linear_between_points_in_the_log_for_log_spacing_and_skip_gaps():
+    x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    assert crossings(x, np.array([0.5, 0.75, 1.25, 1.0, 0.5])) == pytest.approx([1.5, 3.0])  # through, then onto
+    assert crossings(x, np.full(5, 2.0)) == [] and crossings(x, np.full(5, np.nan)) == []
+    assert crossings(x, np.array([0.5, np.nan, 1.5, 1.5, 1.5])) == pytest.approx([1.0])  # across the diverged point
+    # y = log10(x) / log10(4) on a log grid reaches 1 at x = 4 exactly when interpolated in log(x), not linearly
+    g = np.geomspace(1, 16, 5)
+    assert crossings(g, np.log10(g) / np.log10(3.0), log=True) == pytest.approx([3.0])
+    assert crossings(g, np.log10(g) / np.log10(3.0))[0] != pytest.approx(3.0)
+
+
+def two_variants(seeds=(0, 1)) -> pd.DataFrame:
+    """J = 10 - 5 k for variant 'p'; J = 4.5 + 5 k for 'q' (equal at k = 0.55); both at every k of 0..1."""
+    rows = []
+    for s in seeds:
+        for v, f in (("p", lambda k: 10 - 5 * k), ("q", lambda k: 4.5 + 5 * k)):
+            for k in np.linspace(0, 1, 11):
+                rows.append((f"{v}_k_{round(10 * k):03d}_default", "k", k, v, s, f(k) * (1 + 0.01 * s)))
+    df = pd.DataFrame(rows, columns=["variant", "param", "param_value", "sweep_variant", "seed", "value"])
+    return df.assign(metric="J_tot", signal="z", status="ok", gnss="default")
+
+
+SPEC = SweepSpec.model_validate({"variant": "p", "variants": ["p", "q"], "params": {"k": {"key": "k", "range": (0, 1)}},
+                                 "claims": [{"kind": "trend", "param": "k", "range": (0, 1), "decreasing": True,
+                                             "text": "J falls with k"}]})
+
+
+def test_each_variant_is_a_curve_with_its_ratio_and_where_the_curves_meet():
+    t = sweep_table(two_variants(), "J_tot", SPEC)
+    assert "| param | variant | signal | points |" in t and "### Between variants" in t
+    assert row(t, "k", "q", "z")[4:6] == [f"{4.5 * 1.005:.4g}", "0"]  # its minimum (the seed mean) at k = 0
+    ratio = row(t, "k", "z", "q / p")
+    assert ratio[3:7] == [f"{4.5 / 10:.3g}", "0", f"{9.5 / 5:.3g}", "1"]
+    # the ratio (4.5 + 5k)/(10 - 5k) is not linear in k: interpolated between k = 0.5 and 0.6, near 0.55
+    assert float(ratio[7]) == pytest.approx(0.55, abs=0.002) and float(ratio[7]) != 0.55
+    # a third variant, twice p: its ratio to each earlier one
+    m = two_variants()
+    r = m[m["sweep_variant"] == "p"].assign(sweep_variant="r", value=lambda d: 2 * d["value"])
+    t = sweep_table(pd.concat([m, r]), "J_tot", SPEC.model_copy(update={"variants": ["p", "q", "r"]}))
+    assert "against each earlier one" in t and row(t, "k", "z", "r / p")[3:] == ["2", "0", "2", "0", "–"]
+    assert row(t, "k", "z", "r / q")[3] == f"{10 / 9.5:.3g}" and row(t, "k", "z", "q / p")[7] == ratio[7]
+
+
+def test_the_sweeps_claims_are_about_its_own_variant_only():
+    """'p' falls with k, 'q' rises: the claim about sweep.variant 'p' holds and is checked on p's curve alone."""
+    (res,) = sweep_claims(two_variants(), SPEC)
+    assert res.holds and [c.where for c in res.checks] == ["default"]
+    (res,) = sweep_claims(two_variants(), SPEC.model_copy(update={"variant": "q"}))
+    assert not res.holds and res.checks[0].statistic == pytest.approx(1.0)
+
+
+def sweep(tmp_path, *args: str):
+    return CliRunner().invoke(app, ["sweep", "--config", str(TABLE4), "--n", "2", "--horizon", "8", "--seeds", "2",
+                                    "--out", str(tmp_path), "--quiet", *args])
+
+
+def test_a_sweep_of_several_variants_runs_each_at_every_point_as_alone(tmp_path):
+    res = sweep(tmp_path / "both", "noise", "--variants", "liu_eps0.1,proposed_d2.2", *NOISE)
+    assert res.exit_code == 0, res.output
+    (d,) = (tmp_path / "both").iterdir()
+    assert d.name.startswith("bejarano_table4_sweep_noise_liu_eps0.1+proposed_d2.2_n2_8s_set-")
+    m = pd.read_csv(d / "metrics.csv")
+    runs = m.groupby(["sweep_variant", "param_value"])["seed"].nunique()
+    assert runs.to_dict() == {(v, x): 2 for v in ("liu_eps0.1", "proposed_d2.2") for x in (0.0, 2.0)}
+    assert json.loads((d / "manifest.json").read_text())["variants"] == ["liu_eps0.1", "proposed_d2.2"]
+    table = (d / "table.md").read_text()
+    assert row(table, "noise", "u", "proposed_d2.2 / liu_eps0.1")[3] != "–" and (d / "figures" / "sweep.png").exists()
+    # a variant's runs are the same as in a sweep of it alone (runs do not depend on their batch)
+    res = sweep(tmp_path / "alone", "noise", "--set", "sweep.variant=proposed_d2.2", *NOISE)
+    assert res.exit_code == 0, res.output
+    (alone,) = (tmp_path / "alone").iterdir()
+    a = pd.read_csv(alone / "metrics.csv")
+    b = m[m["sweep_variant"] == "proposed_d2.2"]
+    key = ["param_value", "seed", "signal", "metric"]
+    np.testing.assert_array_equal(a.sort_values(key)["value"], b.sort_values(key)["value"])
+    # compare --variants pairs the two variants point by point and seed by seed
+    res = CliRunner().invoke(app, ["compare", str(d), "--variants", "liu_eps0.1", "proposed_d2.2", "--metric", "std",
+                                   "--format", "json"])
+    cells = json.loads(res.output)["cells"]
+    assert {c["variant"] for c in cells} == {"noise=0: proposed_d2.2 vs liu_eps0.1", "noise=2: proposed_d2.2 vs liu_eps0.1"}
+    assert all(c["n"] == 2 for c in cells)
+
+
+@pytest.mark.parametrize(("args", "expected"), [
+    (["noise", "--variants", "liu_eps0.1,nope", *NOISE], "error: --variants: unknown variants ['nope'] (have: liu_eps0.2, "),
+    (["noise", "--variants", "liu_eps0.1,liu_eps0.1", *NOISE], "error: --variants: ['liu_eps0.1'] given more than once"),
+    (["delta_p1", "--variants", "proposed_d1.2,liu_eps0.1"], "'delta_p1' is not a setting of variant 'liu_eps0.1'"),
+])
+def test_variants_that_cannot_be_swept_are_one_line_and_write_nothing(tmp_path, args, expected):
+    res = sweep(tmp_path / "out", *args)
+    assert res.exit_code == 2 and expected in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_validate_checks_the_configs_sweep_variants():
+    res = CliRunner().invoke(app, ["validate", str(TABLE4), "--set", "sweep.variants=[proposed_d1.2, liu_eps0.1]"])
+    assert res.exit_code == 2 and "'delta_p1' is not a setting of variant 'liu_eps0.1'" in res.output, res.output
+    res = CliRunner().invoke(app, ["validate", str(TABLE4), "--set", "sweep.variants=[proposed_d1.2, proposed_d2.2]"])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set", "sweep.scenario=S3",
+                                   "--set", "sweep.variant=cdo_srise", "--set", "sweep.variants=[cdo_srise, rise]"])
+    assert res.exit_code == 2 and "sweep.variants: 'rise' does not run on scenario 'S3'" in res.output, res.output
