@@ -320,8 +320,8 @@ def sweep(
     gnss: Annotated[str | None, typer.Option("--gnss", "--groups", metavar="GROUPS", help="comma-separated world groups of "
                                              "sweep.groups (default: all; --gnss after Torben's two GNSS models)")] = None,
     variants: Annotated[str | None, typer.Option(metavar="NAMES", help="comma-separated variants swept side by side, one curve "
-                                                  "each (default: sweep.variant); each parameter's key must be a setting of "
-                                                  "every one, e.g. a world.<key>")] = None,
+                                                  "each, or 'all' (default: sweep.variant); each parameter's key must be a "
+                                                  "setting of every one, e.g. a world.<key>")] = None,
     horizon: Annotated[float | None, typer.Option(metavar="SECONDS", help="simulated time per run [s]")] = None,
     out_dir: Annotated[Path | None, typer.Option("--out", metavar="DIR", help="write to DIR/<config stem>_sweep.../ (default: results/)")] = None,
     seed: Annotated[int | None, typer.Option(metavar="N", min=0, help="root seed")] = None,
@@ -375,7 +375,11 @@ def sweep(
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     with one_line_errors():
-        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False, variants=variants)  # params checked below
+        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False,  # the parameters are checked below
+                        variants=None if variants == "all" else variants)
+        if variants == "all":  # every variant that runs on the sweep's scenario
+            names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
+            base = base.model_copy(update={"sweep": base.sweep.model_copy(update={"variants": names})})
         exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
         from marinebench.loading import preflight
 

@@ -121,3 +121,14 @@ def test_validate_checks_the_configs_sweep_variants():
     res = CliRunner().invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set", "sweep.scenario=S3",
                                    "--set", "sweep.variant=cdo_srise", "--set", "sweep.variants=[cdo_srise, rise]"])
     assert res.exit_code == 2 and "sweep.variants: 'rise' does not run on scenario 'S3'" in res.output, res.output
+
+
+def test_all_sweeps_every_variant_of_the_sweeps_scenario(tmp_path):
+    """Table III's sweep runs on S1, where rise, srise and cdo_srise run (cdo_srise alone also runs on S3)."""
+    res = CliRunner().invoke(app, ["sweep", "--config", str(ROOT / "configs" / "tijjani_table3.yaml"), "yaw_noise",
+                                   "--variants", "all", "--n", "2", "--horizon", "6", "--seeds", "1", "--out", str(tmp_path),
+                                   "--quiet"])
+    assert res.exit_code == 0, res.output
+    (d,) = tmp_path.iterdir()
+    assert d.name == "tijjani_table3_sweep_yaw_noise_rise+srise+cdo_srise_n2_6s"
+    assert list(pd.read_csv(d / "metrics.csv")["sweep_variant"].unique()) == ["rise", "srise", "cdo_srise"]
