@@ -412,8 +412,9 @@ def sweep(
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
-            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept, chunk_size=chunk_size, chunks_run=ran,
-            executor=executor, wall_time_s=round(wall, 3), batch_time_s=round(summed, 3),
+            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept,
+            chunk_size=chunk_size, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
+            batch_time_s=round(summed, 3),
         )
     except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
         fail(f"{target}: cannot write results ({exc.strerror or exc})")

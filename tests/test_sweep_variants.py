@@ -23,6 +23,7 @@ def test_crossings_are_linear_between_points_in_the_log_for_log_spacing_and_skip
     x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
     assert crossings(x, np.array([0.5, 0.75, 1.25, 1.0, 0.5])) == pytest.approx([1.5, 3.0])  # through, then onto
     assert crossings(x, np.full(5, 2.0)) == [] and crossings(x, np.full(5, np.nan)) == []
+    assert crossings(x, np.array([0.5, 1.0, 1.0, 1.0, 2.0])) == [1.0]  # a stretch on the level: its first point
     assert crossings(x, np.array([0.5, np.nan, 1.5, 1.5, 1.5])) == pytest.approx([1.0])  # across the diverged point
     # y = log10(x) / log10(4) on a log grid reaches 1 at x = 4 exactly when interpolated in log(x), not linearly
     g = np.geomspace(1, 16, 5)
@@ -60,6 +61,8 @@ def test_each_variant_is_a_curve_with_its_ratio_and_where_the_curves_meet():
     t = sweep_table(pd.concat([m, r]), "J_tot", SPEC.model_copy(update={"variants": ["p", "q", "r"]}))
     assert "against each earlier one" in t and row(t, "k", "z", "r / p")[3:] == ["2", "0", "2", "0", "–"]
     assert row(t, "k", "z", "r / q")[3] == f"{10 / 9.5:.3g}" and row(t, "k", "z", "q / p")[7] == ratio[7]
+    same = pd.concat([m, r.assign(value=lambda d: d["value"] / 2)])  # r identical to p
+    assert row(sweep_table(same, "J_tot", SPEC), "k", "z", "r / p")[7] == "everywhere"
 
 
 def test_the_sweeps_claims_are_about_its_own_variant_only():

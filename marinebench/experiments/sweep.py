@@ -289,7 +289,8 @@ def _fmt(m: float, lo: float, hi: float, pct: bool = False) -> str:
 def sweep_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec | None = None, model: str = "") -> str:
     """table.md: range of the seed-mean curve per parameter, group and signal; with ``spec``, the KPI at
     each parameter's probe values (and its change against the first probe, paired over seeds), the
-    Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each group to the first.
+    Spearman rank correlation over each parameter's ``trend`` range, and the ratio of each curve (world group, or
+    variant swept side by side) to each earlier one.
     ``model``: the simulated vessel model (``Experiment.model_label``), named under the heading."""
     curves = _per_seed_curves(metrics, metric, spec.signals if spec else None)
     group = curve_heading(metrics, spec)
@@ -372,7 +373,8 @@ def _groups_section(curves: Curves, heading: str, spec: SweepSpec) -> list[str]:
                 if (p, g, sig) not in curves or (p, ref, sig) not in curves:
                     continue
                 r = curves[p, g, sig].mean(axis=1) / curves[p, ref, sig].mean(axis=1)
-                equal = ", ".join(f"{v:.4g}" for v in crossings(r.index.to_numpy(dtype=float), r.to_numpy(), log=log))
+                equal = "everywhere" if (r == 1).all() else ", ".join(
+                    f"{v:.4g}" for v in crossings(r.index.to_numpy(dtype=float), r.to_numpy(), log=log))
                 cells = ("– | – | – | – | –" if r.isna().all()  # every run of one group diverged
                          else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} | {equal or '–'}")
                 lines.append(f"| {p} | {sig} | {g} / {ref} | {cells} |")
@@ -381,14 +383,15 @@ def _groups_section(curves: Curves, heading: str, spec: SweepSpec) -> list[str]:
 
 def crossings(x: np.ndarray, y: np.ndarray, level: float = 1.0, log: bool = False) -> list[float]:
     """Where the curve ``y(x)`` (x ascending) crosses ``level``: each pair of neighbouring finite points on either side
-    of it (or a point on it) gives one value, linear between them (in ``log(x)`` with ``log``)."""
+    of it gives one value, linear between them (in ``log(x)`` with ``log``); a stretch of points on it, its first."""
     ok = np.isfinite(y)
     x, d = x[ok], y[ok] - level
     u = np.log(x) if log else x
     found = []
     for i in range(len(d)):
         if d[i] == 0:
-            found.append(float(x[i]))
+            if i == 0 or d[i - 1] != 0:
+                found.append(float(x[i]))
         elif i + 1 < len(d) and d[i] * d[i + 1] < 0:
             at = u[i] + (u[i + 1] - u[i]) * d[i] / (d[i] - d[i + 1])
             found.append(float(np.exp(at) if log else at))
