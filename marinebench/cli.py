@@ -109,8 +109,12 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
     see :func:`~marinebench.loading.load_checked`; ``variants``: ``sweep --variants``, comma-separated)."""
     from marinebench.loading import load_checked
 
-    options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds),
-               "sweep.variants": ("--variants", variants and f"[{variants}]")}
+    if variants is not None:
+        names = [name.strip() for name in variants.split(",")]
+        if not all(names):
+            raise ConfigError("--variants", "", f"comma-separated variant names, e.g. rise,srise, or 'all' (got '{variants}')")
+        variants = json.dumps(names)  # quoted: a variant may be named "1e3"
+    options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds), "sweep.variants": ("--variants", variants)}
     sets = list(sets) + [f"{key}={value}" for key, (_, value) in options.items() if value is not None]
     try:
         return load_checked(config, sets, profile, sweep_params)

@@ -108,6 +108,8 @@ def test_a_sweep_of_several_variants_runs_each_at_every_point_as_alone(tmp_path)
 @pytest.mark.parametrize(("args", "expected"), [
     (["noise", "--variants", "liu_eps0.1,nope", *NOISE], "error: --variants: unknown variants ['nope'] (have: liu_eps0.2, "),
     (["noise", "--variants", "liu_eps0.1,liu_eps0.1", *NOISE], "error: --variants: ['liu_eps0.1'] given more than once"),
+    (["noise", "--variants", "liu_eps0.1,", *NOISE], "error: --variants: comma-separated variant names, e.g. rise,srise, or "),
+    (["noise", "--variants", "[liu_eps0.1]", *NOISE], "error: --variants: unknown variants ['[liu_eps0.1]']"),
     (["delta_p1", "--variants", "proposed_d1.2,liu_eps0.1"], "'delta_p1' is not a setting of variant 'liu_eps0.1'"),
 ])
 def test_variants_that_cannot_be_swept_are_one_line_and_write_nothing(tmp_path, args, expected):
