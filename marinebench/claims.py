@@ -141,7 +141,10 @@ class TrendClaim(_SweepClaim):
 
 
 class GroupsClaim(_SweepClaim):
-    """Group ``above``'s mean curve lies above group ``below``'s at every value of the parameter."""
+    """Group ``above``'s mean curve lies above group ``below``'s at every value of the parameter. ``above`` and
+    ``below`` may also name two variants, checked when both are swept side by side (``sweep --variants``), in
+    each group: "CDO-S+RISE's yaw RMSE is not above S+RISE's" at every yaw-sample noise is
+    ``{param: yaw_noise, above: srise, below: cdo_srise, signal: yaw}``."""
 
     kind: Literal["groups"] = "groups"
     above: str

@@ -311,8 +311,7 @@ class SweepSpec(BaseModel):
             outside = [v for v in values if not lo <= v <= hi]
             if outside:
                 raise ValueError(f"{where}: values {outside} outside {c.param}'s range {self.params[c.param].range}")
-            named = [*(c.groups or []), *([c.above, c.below] if c.kind == "groups" else [])]
-            unknown = [g for g in named if g not in self.groups]
+            unknown = [g for g in c.groups or [] if g not in self.groups]  # a groups claim's pair: Experiment's check
             if unknown:
                 raise ValueError(f"{where}: unknown groups {unknown} (have: {', '.join(self.groups)})")
             if c.metric is not None and c.metric not in self.shown:
@@ -586,6 +585,11 @@ class Experiment(BaseModel):
         twice = sorted({v for v in self.sweep.variants or [] if self.sweep.variants.count(v) > 1})
         if twice:
             raise ValueError(f"sweep.variants: {twice} given more than once")
+        for i, c in enumerate(self.sweep.claims):  # two groups, or two variants (checked when swept side by side)
+            pair = [c.above, c.below] if c.kind == "groups" else []
+            if not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
+                raise ValueError(f"sweep.claims.{i}: {pair} are neither two of the groups ({', '.join(self.sweep.groups)}) "
+                                 f"nor two variants ({', '.join(names)})")
         for metric in self.sweep.shown:
             if metric not in kinds:
                 raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")

@@ -93,7 +93,7 @@ def test_sweep_claims_on_known_curves():
     # with one group swept, the groups claims and the claim about group b alone are not checked
     assert [r.claim.text for r in sweep_claims(only_a, spec)] == ["k gain > 20 %", "k gain > 40 %", "grows", "falls"]
     with pytest.raises(ValueError, match="unknown groups"):
-        SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[4], "above": "c"}]})
+        SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[0], "groups": ["c"]}]})
     with pytest.raises(ValueError, match="outside k's range"):
         SweepSpec.model_validate({**spec.model_dump(), "claims": [{**claims[0], "at": 2.0}]})
 

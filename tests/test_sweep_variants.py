@@ -73,6 +73,31 @@ def test_the_sweeps_claims_are_about_its_own_variant_only():
     assert not res.holds and res.checks[0].statistic == pytest.approx(1.0)
 
 
+def test_a_groups_claim_may_compare_two_variants_swept_side_by_side():
+    """'q above p at every k' fails below k = 0.55 (the lowest ratio, q/p = 0.45 at k = 0); 'p above q' fails above it;
+    in a sweep of p alone neither is checked. The pair is named in the check; a world group names it too."""
+    claims = [{"kind": "groups", "param": "k", "above": "q", "below": "p", "text": "q above p"},
+              {"kind": "groups", "param": "k", "above": "p", "below": "q", "text": "p above q"}]
+    spec = SweepSpec.model_validate({**SPEC.model_dump(), "claims": claims})
+    q_over_p, p_over_q = sweep_claims(two_variants(), spec)
+    assert not q_over_p.holds and q_over_p.checks[0].statistic == pytest.approx(4.5 / 10)
+    assert q_over_p.checks[0].where == "q / p" and q_over_p.checks[0].means == pytest.approx({"q at k=0": 4.5 * 1.005,
+                                                                                             "p": 10 * 1.005})
+    assert not p_over_q.holds and p_over_q.checks[0].statistic == pytest.approx(5 / 9.5)
+    alone = two_variants()[lambda d: d["sweep_variant"] == "p"].drop(columns="sweep_variant")
+    assert sweep_claims(alone, spec) == []
+    in_groups = two_variants().assign(gnss="dgnss")
+    (res, _) = sweep_claims(in_groups, spec.model_copy(update={"groups": {"dgnss": {}}}))
+    assert [c.where for c in res.checks] == ["q/dgnss / p/dgnss"]
+
+
+def test_a_groups_claim_names_two_groups_or_two_variants():
+    res = CliRunner().invoke(app, ["validate", str(ROOT / "configs" / "torben_fig3.yaml"), "--set",
+                                   "sweep.claims.3.above=resetting"])
+    assert res.exit_code == 2, res.output
+    assert "sweep.claims.3: ['resetting', 'dgnss'] are neither two of the groups (dgnss, dualband) nor two variants" in res.output
+
+
 def sweep(tmp_path, *args: str):
     return CliRunner().invoke(app, ["sweep", "--config", str(TABLE4), "--n", "2", "--horizon", "8", "--seeds", "2",
                                     "--out", str(tmp_path), "--quiet", *args])

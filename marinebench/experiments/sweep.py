@@ -399,18 +399,20 @@ def crossings(x: np.ndarray, y: np.ndarray, level: float = 1.0, log: bool = Fals
 
 
 def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
-    """Check the sweep's claims on each group's curves of ``sweep.variant``; claims about a parameter (or a variant)
-    not swept this time are left out."""
-    results, metrics = [], own_runs(metrics, spec)
+    """Check the sweep's claims on each group's curves of ``sweep.variant`` (a groups claim about two variants: on
+    theirs, in each group); claims about a parameter, a group or a variant not swept this time are left out."""
+    results, own = [], own_runs(metrics, spec)
     for claim in spec.claims:
-        if claim.param not in set(metrics["param"]):
+        if claim.param not in set(own["param"]):
             continue
         metric = claim.metric or spec.shown[0]
-        curves = {(g, sig): c for (p, g, sig), c in _per_seed_curves(
-            metrics, metric, [claim.signal] if claim.signal else spec.signals).items() if p == claim.param}
+        signals = [claim.signal] if claim.signal else spec.signals
+        curves = {(g, sig): c for (p, g, sig), c in _per_seed_curves(own, metric, signals).items() if p == claim.param}
         log = spec.params[claim.param].spacing == "log"
         res = ClaimResult(claim, metric)
-        if isinstance(claim, GroupsClaim):
+        if isinstance(claim, GroupsClaim) and claim.above not in spec.groups:  # two variants, in each group
+            res.checks += _variants_checks(claim, metrics, metric, signals)
+        elif isinstance(claim, GroupsClaim):
             for sig in dict.fromkeys(sig for _, sig in curves):
                 if (claim.above, sig) in curves and (claim.below, sig) in curves:
                     res.checks.append(_groups_check(claim, curves[claim.above, sig], curves[claim.below, sig], sig))
@@ -422,6 +424,18 @@ def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
         if res.checks:  # e.g. a groups claim when only one group was swept: not checked this time
             results.append(res)
     return results
+
+
+def _variants_checks(claim: GroupsClaim, metrics: pd.DataFrame, metric: str, signals: list[str] | None) -> list[Check]:
+    """A groups claim about two variants swept side by side: one check per world group and signal (none when either
+    variant was not swept)."""
+    curves = {(g, sig): c for (p, g, sig), c in _per_seed_curves(metrics, metric, signals).items() if p == claim.param}
+    checks = []
+    for g, sig in dict.fromkeys((g.partition("/")[2] or "default", sig) for g, sig in curves):
+        a, b = ((name if g == "default" else f"{name}/{g}", sig) for name in (claim.above, claim.below))
+        if a in curves and b in curves:
+            checks.append(_groups_check(claim, curves[a], curves[b], sig, a[0], b[0]))
+    return checks
 
 
 def _probe_check(claim: ProbeClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
@@ -447,7 +461,10 @@ def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig:
     return Check(group, sig, means, r, bootstrap_ci([values], rho), needs, bool(sign * r > claim.min_rho))
 
 
-def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, sig: str) -> Check:
+def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, sig: str, above_name: str | None = None,
+                  below_name: str | None = None) -> Check:
+    """``above``'s curve over ``below``'s at its lowest (named by the claim's groups, or the curves' names)."""
+    above_name, below_name = above_name or claim.above, below_name or claim.below
     seeds = above.columns.intersection(below.columns)
     a, b = above[seeds].to_numpy(dtype=float).T, below[seeds].to_numpy(dtype=float).T  # rows: seeds
 
@@ -456,9 +473,8 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
 
     ratio = lowest(a, b)
     at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
-    means = {f"{claim.above} at {claim.param}={at:.3g}": float(above.loc[at].mean()),
-             f"{claim.below}": float(below.loc[at].mean())}
-    return Check(f"{claim.above} / {claim.below}", sig, means, ratio, bootstrap_ci([a, b], lowest),
+    means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
+    return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest),
                  "> 1 at every value", bool(ratio > 1))
 
 
