@@ -141,7 +141,8 @@ class TrendClaim(_SweepClaim):
 
 
 class GroupsClaim(_SweepClaim):
-    """Group ``above``'s mean curve lies above group ``below``'s at every value of the parameter. ``above`` and
+    """Group ``above``'s mean curve lies above group ``below``'s at every value of the parameter (with ``factor``:
+    ``below``'s under ``factor`` × ``above``'s, as a ``less`` claim with ``a = below``, ``b = above``). ``above`` and
     ``below`` may also name two variants, checked when both are swept side by side (``sweep --variants``), in
     each group: "CDO-S+RISE's yaw RMSE is not above S+RISE's" at every yaw-sample noise is
     ``{param: yaw_noise, above: srise, below: cdo_srise, signal: yaw}``."""
@@ -149,6 +150,8 @@ class GroupsClaim(_SweepClaim):
     kind: Literal["groups"] = "groups"
     above: str
     below: str
+    factor: float = Field(1.0, gt=0, description="below's curve under factor × above's at every value (0.7: at least 30 % "
+                          "under it; 1.1: at most 10 % over it)")
 
 
 SweepClaim = Annotated[ProbeClaim | TrendClaim | GroupsClaim, Field(discriminator="kind")]

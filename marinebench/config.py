@@ -592,4 +592,5 @@ class Experiment(BaseModel):
                                  f"nor two variants ({', '.join(names)})")
         for metric in self.sweep.shown:
             if metric not in kinds:
-                raise ValueError(f"sweep.metric '{metric}' is not among metrics {kinds}")
+                key = "sweep.metrics" if self.sweep.metrics else "sweep.metric"
+                raise ValueError(f"{key}: '{metric}' is not among the experiment's metrics {kinds}")

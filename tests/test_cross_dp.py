@@ -177,7 +177,7 @@ def test_cli_sweep_tabulates_and_plots_each_of_several_metrics(tmp_path):
                                    "--set", "sweep.params.eps.range=[0.05, 5.0]", "--set", "sweep.params.eps.probes=[0.05, 5.0]",
                                    "--out", str(tmp_path), "--quiet"])
     assert res.exit_code == 0, res.output
-    out, = tmp_path.glob("cross_dp_impulse_sweep_n2_320s_set-*")  # --n, --horizon and the --set overrides name it
+    out, = tmp_path.glob("cross_dp_impulse_sweep_eps_n2_320s_set-*")  # eps alone, --n, --horizon, the --sets name it
     table = (out / "table.md").read_text()
     assert "## Sweep: rmse_transient vs each parameter" in table and "## Sweep: rmse_steady vs each parameter" in table
     assert (out / "figures" / "sweep.png").stat().st_size > 0

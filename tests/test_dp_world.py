@@ -308,7 +308,7 @@ def test_resetting_recovers_transient_on_clean_measurements():
 def test_fig1_ordering_with_noise_and_waves():
     """Torben Figs 1-2 on the committed tuning, shortened: resets cut the transient KPI by well over 30 %
     and leave no steady-state penalty once the transient is over (J over [300, 400) s within 10 %)."""
-    exp, _ = load_experiment(CONFIG, ["scenario.horizon=400", "seeds=2", "figures=[]", "table.metrics=[J_tot_transient]",
+    exp, _ = load_experiment(CONFIG, ["scenario.horizon=400", "seeds=2", "figures=[]", "table.metrics=[J_tot_transient]", "sweep=null",
                                       ("metrics=[{kind: j_tot, name: J_tot_transient, t_start: 50, t_end: 150}, "
                                        "{kind: j_tot, name: J_late, t_start: 300}]")])
     m = run(exp, traces=False).metrics.groupby(["variant", "metric"])["value"].mean()
@@ -447,7 +447,7 @@ def test_discrete_fto_is_exact_through_the_engine(scheme):
               "variants.1.observer.k=1", "variants.1.observer.eps=[1.0e-9, 1.0e-9, 1.0e-9]",
               f"variants.0.observer.discretization={scheme}", f"variants.1.observer.discretization={scheme}",
               "metrics=[{kind: j_tot, name: J_before, t_end: 2.5}, {kind: j_tot, name: J_after, t_start: 2.5}]",
-              "table.metrics=[J_before, J_after]", config=MATCHED)
+              "table.metrics=[J_before, J_after]", "sweep=null", config=MATCHED)
     assert m["resetting", "J_before"] > 1e-3  # the observers start from zero: a real error to remove
     if scheme == "predictor":
         assert m["resetting", "J_after"] < 1e-9 * m["resetting", "J_before"]

@@ -84,6 +84,11 @@ def test_a_groups_claim_may_compare_two_variants_swept_side_by_side():
     assert q_over_p.checks[0].where == "q / p" and q_over_p.checks[0].means == pytest.approx({"q at k=0": 4.5 * 1.005,
                                                                                              "p": 10 * 1.005})
     assert not p_over_q.holds and p_over_q.checks[0].statistic == pytest.approx(5 / 9.5)
+    # with a factor, as a `less` claim: q under 2 p at every k (q/p is at most 1.9) holds, under 1.8 p does not
+    for factor, holds in ((2.0, True), (1.8, False)):
+        (res,) = sweep_claims(two_variants(), spec.model_copy(update={"claims": [spec.claims[1].model_copy(
+            update={"factor": factor})]}))
+        assert res.holds is holds and res.checks[0].needs == f"> {1 / factor:.3g} at every value"
     alone = two_variants()[lambda d: d["sweep_variant"] == "p"].drop(columns="sweep_variant")
     assert sweep_claims(alone, spec) == []
     in_groups = two_variants().assign(gnss="dgnss")

@@ -475,7 +475,7 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
     means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
     return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest),
-                 "> 1 at every value", bool(ratio > 1))
+                 f"> {1 / claim.factor:.3g} at every value", bool(ratio * claim.factor > 1))
 
 
 def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
