@@ -19,16 +19,22 @@ TABLE4 = ROOT / "configs" / "bejarano_table4.yaml"
 NOISE = ["--set", "sweep.params.noise={key: world.position_noise_scale, range: [0.0, 2.0]}"]
 
 
+def flat(pairs: list[tuple[float, float]]) -> list[float]:
+    return [v for pair in pairs for v in pair]
+
+
 def test_crossings_are_linear_between_points_in_the_log_for_log_spacing_and_skip_gaps():
     x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
-    assert crossings(x, np.array([0.5, 0.75, 1.25, 1.0, 0.5])) == pytest.approx([1.5, 3.0])  # through, then onto
+    assert flat(crossings(x, np.array([0.5, 0.75, 1.25, 1.0, 0.5]))) == pytest.approx([1.5, 1.5, 3.0, 3.0])  # through, onto
     assert crossings(x, np.full(5, 2.0)) == [] and crossings(x, np.full(5, np.nan)) == []
-    assert crossings(x, np.array([0.5, 1.0, 1.0, 1.0, 2.0])) == [1.0]  # a stretch on the level: its first point
-    assert crossings(x, np.array([0.5, np.nan, 1.5, 1.5, 1.5])) == pytest.approx([1.0])  # across the diverged point
-    # y = log10(x) / log10(4) on a log grid reaches 1 at x = 4 exactly when interpolated in log(x), not linearly
+    assert flat(crossings(x, np.array([0.5, np.nan, 1.5, 1.5, 1.5]))) == pytest.approx([1.0, 1.0])  # across a diverged point
+    # a stretch on the level (to 1e-6: metrics.csv keeps 7 digits) is its first and last point
+    assert crossings(x, np.array([0.5, 1.0, 1 - 1e-8, 1.0, 2.0])) == [(1.0, 3.0)]
+    assert crossings(x, np.array([1.0, 1 + 2e-6, 1.0, 1.0, 1.0])) == [(0.0, 0.0), (2.0, 4.0)]
+    # y = log10(x) / log10(3) on a log grid reaches 1 at x = 3 exactly when interpolated in log(x), not linearly
     g = np.geomspace(1, 16, 5)
-    assert crossings(g, np.log10(g) / np.log10(3.0), log=True) == pytest.approx([3.0])
-    assert crossings(g, np.log10(g) / np.log10(3.0))[0] != pytest.approx(3.0)
+    assert flat(crossings(g, np.log10(g) / np.log10(3.0), log=True)) == pytest.approx([3.0, 3.0])
+    assert crossings(g, np.log10(g) / np.log10(3.0))[0][0] != pytest.approx(3.0)
 
 
 def two_variants(seeds=(0, 1)) -> pd.DataFrame:
@@ -63,6 +69,8 @@ def test_each_variant_is_a_curve_with_its_ratio_and_where_the_curves_meet():
     assert row(t, "k", "z", "r / q")[3] == f"{10 / 9.5:.3g}" and row(t, "k", "z", "q / p")[7] == ratio[7]
     same = pd.concat([m, r.assign(value=lambda d: d["value"] / 2)])  # r identical to p
     assert row(sweep_table(same, "J_tot", SPEC), "k", "z", "r / p")[7] == "everywhere"
+    apart = pd.concat([m, r.assign(value=lambda d: np.where(d["param_value"] > 0.55, d["value"], d["value"] / 2))])
+    assert row(sweep_table(apart, "J_tot", SPEC), "k", "z", "r / p")[7] == "0–0.5"  # equal, then twice
 
 
 def test_the_sweeps_claims_are_about_its_own_variant_only():

@@ -364,7 +364,8 @@ def _groups_section(curves: Curves, heading: str, spec: SweepSpec) -> list[str]:
     against = f"`{groups[0]}`" if len(groups) == 2 else "each earlier one (in the order run)"
     lines = ["", f"### Between {'variants' if heading.startswith('variant') else 'groups'}", "",
              (f"Ratio of the mean curves, point by point, against {against}; it crosses 1 (the curves are equal) at "
-              "the values listed, linear between points (in the log of the value for log spacing)."), "",
+              "the values listed, linear between points (in the log of the value for log spacing), or stays at 1 "
+              "(to 1e-6) over the ranges listed."), "",
              "| param | signal | ratio | min | at value | max | at value | equal at |", "|---|---|---|---|---|---|---|---|"]
     for p, sig in dict.fromkeys((p, sig) for p, _, sig in curves):
         log = p in spec.params and spec.params[p].spacing == "log"
@@ -373,29 +374,46 @@ def _groups_section(curves: Curves, heading: str, spec: SweepSpec) -> list[str]:
                 if (p, g, sig) not in curves or (p, ref, sig) not in curves:
                     continue
                 r = curves[p, g, sig].mean(axis=1) / curves[p, ref, sig].mean(axis=1)
-                equal = "everywhere" if (r == 1).all() else ", ".join(
-                    f"{v:.4g}" for v in crossings(r.index.to_numpy(dtype=float), r.to_numpy(), log=log))
                 cells = ("– | – | – | – | –" if r.isna().all()  # every run of one group diverged
-                         else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} | {equal or '–'}")
+                         else f"{r.min():.3g} | {r.idxmin():.4g} | {r.max():.3g} | {r.idxmax():.4g} | {_equal_at(r, log)}")
                 lines.append(f"| {p} | {sig} | {g} / {ref} | {cells} |")
     return lines
 
 
-def crossings(x: np.ndarray, y: np.ndarray, level: float = 1.0, log: bool = False) -> list[float]:
-    """Where the curve ``y(x)`` (x ascending) crosses ``level``: each pair of neighbouring finite points on either side
-    of it gives one value, linear between them (in ``log(x)`` with ``log``); a stretch of points on it, its first."""
+#: Relative distance from the level within which a point counts as on it: metrics.csv keeps 7 significant digits, so
+#: two equal curves read back may differ by about 1e-7.
+ON_LEVEL = 1e-6
+
+
+def crossings(x: np.ndarray, y: np.ndarray, level: float = 1.0, log: bool = False) -> list[tuple[float, float]]:
+    """Where the curve ``y(x)`` (x ascending) meets ``level``, as ``(from, to)``: a crossing between two neighbouring
+    finite points on either side of it, linear between them (in ``log(x)`` with ``log``), is ``(x0, x0)``; a stretch of
+    points on it (within :data:`ON_LEVEL`) is its first and last point."""
     ok = np.isfinite(y)
     x, d = x[ok], y[ok] - level
+    d[np.abs(d) <= ON_LEVEL * abs(level)] = 0.0
     u = np.log(x) if log else x
     found = []
     for i in range(len(d)):
         if d[i] == 0:
             if i == 0 or d[i - 1] != 0:
-                found.append(float(x[i]))
+                found.append((float(x[i]), float(x[i])))
+            else:
+                found[-1] = (found[-1][0], float(x[i]))
         elif i + 1 < len(d) and d[i] * d[i + 1] < 0:
-            at = u[i] + (u[i + 1] - u[i]) * d[i] / (d[i] - d[i + 1])
-            found.append(float(np.exp(at) if log else at))
+            t = u[i] + (u[i + 1] - u[i]) * d[i] / (d[i] - d[i + 1])
+            at = float(np.exp(t) if log else t)
+            found.append((at, at))
     return found
+
+
+def _equal_at(r: pd.Series, log: bool) -> str:
+    """The table's *equal at* cell: where the ratio curve ``r`` meets 1 (:func:`crossings`), 'everywhere', or '–'."""
+    x = r.index.to_numpy(dtype=float)
+    found = crossings(x, r.to_numpy(dtype=float), log=log)
+    if found == [(x[0], x[-1])] and np.isfinite(r.to_numpy(dtype=float)).all():
+        return "everywhere"
+    return ", ".join(f"{a:.4g}" if a == b else f"{a:.4g}–{b:.4g}" for a, b in found) or "–"
 
 
 def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
