@@ -172,6 +172,23 @@ def _side_by_side(sweep: str, metric: str, signal: str, top: str, bottom: str) -
     return means[top] / means[bottom]
 
 
+FIG1_GNSS = "torben_fig1_sweep_npo+resetting_5seeds"
+
+
+def _fig1_over_gnss() -> dict[str, float]:
+    """Torben Figs 1-2 along the GNSS noise: the transient ratio's range, the last noise level where the steady
+    ratio is 1 (to 1e-6) before it rises, the resetting observer's jumps at the third level and where the steady ratio
+    is highest, that highest (and where) and the steady ratio at 3 m."""
+    transient, steady = (_side_by_side(FIG1_GNSS, m, "z", "resetting", "npo") for m in ("J_tot_transient", "J_tot_steady"))
+    jumps = _curves(FIG1_GNSS, "n_jumps", "z")["resetting"]
+    x = steady.index.to_numpy()
+    on = np.abs(steady.to_numpy() - 1) <= 1e-6
+    assert on[0] and not on[int(np.argmin(on))] and not on[int(np.argmin(on)):].any(), "steady ratio: not one stretch at 1"
+    return {"transient": [transient.min(), transient.max()], "equal_to": x[int(np.argmin(on)) - 1],
+            "jumps": [jumps.iloc[2], x[2], jumps.iloc[int(np.argmax(steady.to_numpy()))], x[int(np.argmax(steady.to_numpy()))]],
+            "steady": [steady.max(), x[int(np.argmax(steady.to_numpy()))], steady.iloc[-1]]}
+
+
 def _table4_over_noise() -> list[float]:
     """e_u of δ = 2.2 over Liu ε = 0.1 without noise and at twice it (never below 1), and over δ = 1.2: where it
     reaches 1, and at 0.2 and 0.4 of the noise."""
@@ -415,6 +432,15 @@ QUOTES = [
     Quote("docs/bejarano.md", "Fig. 5's σ half needs at least {} of our noise, Fig. 7's best kω = 100 at most {}",
           lambda: [_noise_grid("sigma_u")[2], _noise_grid("v", FIG7_GRID, 100.0, 10.0)[2]]),
     Quote("docs/torben.md", "from 0.05 to 3 m: J(5)/J(0.1) stays between {} and {}, so", _eps_over_noise),
+    Quote("docs/torben.md", "J_tot_transient\n  {}–{} of the NPO's. The steady state does not: up to {} m the two observers' "
+          "J_tot_steady are equal", lambda: [*(q := _fig1_over_gnss())["transient"], q["equal_to"]]),
+    Quote("docs/torben.md", "(jumps per run {} at {} m, {} at {} m) and the resetting observer's J_tot_steady is\n  {}× the "
+          "NPO's at {} m, near the dual-band 1.5 m ({}× at 3 m)", lambda: [*(q := _fig1_over_gnss())["jumps"], *q["steady"]]),
+    Quote("README.md", "but above {} m the noise reaches Table I's ε and fires resets in the steady\n  state: {}× the NPO's "
+          "J_tot_steady at {} m", lambda: [(q := _fig1_over_gnss())["equal_to"], *q["steady"][:2]]),
+    Quote("docs/cross.md", "along which Liu ε = 0.1's steady sway error grows from {} to {} m/s",
+          lambda: (lambda v: [v.iloc[0], v.iloc[-1]])(_metrics("cross_dp_impulse_sweep_5seeds").query(
+              "param == 'gnss_sigma' and signal == 'v' and metric == 'rmse_steady'").groupby("param_value")["value"].mean())),
     Quote("docs/bejarano.md", "0.1) is {} without noise and falls to {} at twice the noise, never below 1, while δ = 2.2 beats "
           "δ = 1.2 on e_u\n  only below {} of the noise ({} at 0.2, {} at 0.4)", _table4_over_noise),
     Quote("docs/tijjani.md", "S+RISE's yaw RMSE is {}–{}× RISE's at\n  every level ({}–{} against {}–{} e-2 rad",
