@@ -99,6 +99,8 @@ def test_a_groups_claim_may_compare_two_variants_swept_side_by_side():
         assert res.holds is holds and res.checks[0].needs == f"> {1 / factor:.3g} at every value"
     alone = two_variants()[lambda d: d["sweep_variant"] == "p"].drop(columns="sweep_variant")
     assert sweep_claims(alone, spec) == []
+    # about two variants, neither of them sweep.variant: still checked
+    assert len(sweep_claims(two_variants(), spec.model_copy(update={"variant": "x"}))) == 2
     in_groups = two_variants().assign(gnss="dgnss")
     (res, _) = sweep_claims(in_groups, spec.model_copy(update={"groups": {"dgnss": {}}}))
     assert [c.where for c in res.checks] == ["q/dgnss / p/dgnss"]

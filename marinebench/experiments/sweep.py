@@ -421,7 +421,7 @@ def sweep_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[ClaimResult]:
     theirs, in each group); claims about a parameter, a group or a variant not swept this time are left out."""
     results, own = [], own_runs(metrics, spec)
     for claim in spec.claims:
-        if claim.param not in set(own["param"]):
+        if claim.param not in set(metrics["param"]):
             continue
         metric = claim.metric or spec.shown[0]
         signals = [claim.signal] if claim.signal else spec.signals
