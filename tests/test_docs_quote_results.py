@@ -203,6 +203,55 @@ def _fig1_over_gnss() -> dict[str, float]:
             "steady": [steady.max(), x[int(np.argmax(steady.to_numpy()))], steady.iloc[-1]]}
 
 
+FIG1_GRID = "torben_fig1_sweep_grid_c_eps_gnss_sigma_set-b9193cf0_5seeds"
+FIG1_NPO = "torben_fig1_sweep_n11_sweep.variant=npo_5seeds"
+
+
+def _fig1_grid_over_npo(metric: str) -> pd.DataFrame:
+    """The resetting observer's c_ε x GNSS-noise grid on Figs 1-2's world over the NPO on the same σ points and seeds:
+    rows c_ε, columns σ, ratio of the means."""
+    grid, npo = _metrics(FIG1_GRID), _metrics(FIG1_NPO)
+    ours = grid[grid.metric == metric].groupby(["param_value", "param2_value"])["value"].mean().unstack()
+    theirs = npo[npo.metric == metric].groupby("param_value")["value"].mean()
+    assert np.allclose(ours.columns, theirs.index), "the NPO sweep's σ points are not the grid's"
+    return ours / theirs.to_numpy()
+
+
+def _fig1_eps_needed() -> list[float]:
+    """The transient ratio's highest on the grid; the last σ up to which the steady ratio is 1 (to 0.1 %) at c_ε = 3.98
+    and at 6.31, the latter's ratio at 1.99 m, and the steady ratio's range for c_ε <= 1."""
+    steady = _fig1_grid_over_npo("J_tot_steady")
+
+    def equal_up_to(row: pd.Series) -> float:
+        on = np.abs(row.to_numpy() - 1) <= 1e-3
+        return float(row.index[int(np.argmin(on)) - 1]) if not on.all() else float(row.index[-1])
+
+    c398, c631 = (steady.iloc[int(np.argmin(np.abs(np.log(steady.index / c))))] for c in (3.98, 6.31))
+    low = steady[steady.index <= 1.0]
+    return [_fig1_grid_over_npo("J_tot_transient").max().max(), equal_up_to(c398), equal_up_to(c631),
+            c631.iloc[int(np.argmin(np.abs(c631.index - 1.99)))], low.min().min(), low.max().max()]
+
+
+def _fig1_eps_claim() -> list[float]:
+    """J(c_ε = 0.1)/J(c_ε = 5) on Figs 1-2's world (5 interpolated in log, per seed): the ratio of the means and the
+    per-seed range at σ = 0.113, 1.32 and 1.99 m; then the steady and transient ratios at 0.113 m."""
+    m = _metrics(FIG1_GRID)
+
+    def at(metric: str, sigma: float) -> np.ndarray:
+        part = m[(m.metric == metric) & np.isclose(m.param2_value, sigma, rtol=1e-3)]
+        t = part.pivot_table(index="param_value", columns="seed", values="value")
+        five = np.array([np.interp(np.log(5.0), np.log(t.index.to_numpy()), t[c].to_numpy()) for c in t.columns])
+        return t.iloc[0].to_numpy(), five
+
+    out = []
+    for sigma in (0.113397, 1.32279, 1.992077):
+        low, five = at("J_tot", sigma)
+        out.append([low.mean() / five.mean(), (low / five).min(), (low / five).max()])
+    (a, b, c), (d, e, f), (g, h, i) = out
+    steady, transient = (np.divide(*(x.mean() for x in at(k, 0.113397))) for k in ("J_tot_steady", "J_tot_transient"))
+    return [a, b, c, d, g, e, f, h, i, steady, transient]
+
+
 def _cross_over_gnss() -> pd.Series:
     """Liu ε = 0.1's steady-state sway RMSE in the DP world along the GNSS noise level (mean over seeds)."""
     m = _metrics("cross_dp_impulse_sweep_5seeds")
@@ -469,6 +518,15 @@ QUOTES = [
           lambda: _sweep_ratios(f"{OBS0}_sweep_5seeds", "yaw_noise")[2:]),
     Quote("docs/tijjani.md", "the ratio is above 1 at every level: {}–{} in yaw, and in depth {}–{}\n  but for one point "
           "({} at {} mm", lambda: _sweep_ratios(f"{OBS}_sweep_5seeds", "yaw_noise")[2:] + _depth_noise_but_the_cycle()),
+    Quote("docs/torben.md", "(J_tot_transient at most {}× the NPO's). J_tot_steady equals the NPO's (to 0.1 %) up to {} m with "
+          "c_ε = 3.98, up\n  to {} m with c_ε = 6.31 ({}× at 1.99 m), while c_ε ≤ 1 costs {}–{}× at every level",
+          _fig1_eps_needed),
+    Quote("docs/torben.md", "is {} at σ = 0.113 m,\n  the grid point nearest differential's 0.1 m (per seed {}–{}), but {} at "
+          "1.32 m and {} at 1.99 m around\n  dual-band's 1.5 m (per seed {}–{} and {}–{}, a tie). Constant resetting costs "
+          "in the steady state (J_tot_steady\n  {}× that at c_ε = 5, at 0.113 m) and gains in the transient ({}×)",
+          _fig1_eps_claim),
+    Quote("README.md", "(J(c_ε = 0.1)/J(c_ε = 5) = {} at\n  0.113 m) and ties for dual-band ({} at 1.32 m)",
+          lambda: [(q := _fig1_eps_claim())[0], q[3]]),
     Quote("docs/bejarano.md", "0.1) is {} without noise and falls to {} at twice the noise, never below 1, while δ = 2.2 beats "
           "δ = 1.2 on e_u\n  only below {} of the noise ({} at 0.2, {} at 0.4)", _table4_over_noise),
     Quote("docs/tijjani.md", "S+RISE's yaw RMSE is {}–{}× RISE's at\n  every level ({}–{} against {}–{} e-2 rad",
