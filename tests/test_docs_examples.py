@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 
-from .conftest import ROOT
+from .conftest import ROOT, md_row
 from .test_docs_quote_results import Quote, assert_quote_holds
 
 runner = CliRunner()
@@ -37,9 +37,13 @@ def first(tmp_path_factory) -> dict:
     sweep = runner.invoke(app, ["sweep", "--config", str(FIRST), "delta_p1", "--n", "8", "--out", str(out), "--quiet",
                                 "--jobs", "1"])
     assert sweep.exit_code == 0, sweep.output
+    both = runner.invoke(app, ["sweep", "--config", str(FIRST), "noise", "--n", "6", "--variants", "all", "--out", str(out),
+                               "--quiet", "--jobs", "1"])
+    assert both.exit_code == 0, both.output
     cells = {c["signal"]: c for c in json.loads(pair.output)["cells"]}
     return {"out": out, "compare_exit": pair.exit_code, "cells": cells,
-            "sweep": pd.read_csv(out / "asv_observers_sweep_n8_3seeds" / "metrics.csv")}
+            "sweep": pd.read_csv(out / "asv_observers_sweep_delta_p1_n8_3seeds" / "metrics.csv"),
+            "both": out / "asv_observers_sweep_noise_liu_eps0.1+proposed_d1.5_n6_3seeds"}
 
 
 def test_the_first_experiment_writes_what_the_readme_lists(first):
@@ -70,6 +74,22 @@ def test_the_first_experiments_sweep_is_lowest_where_quoted(first):
     lowest = [float(curve[s].idxmin()) for s in ("u", "sigma_u")]
     assert_quote_holds(Quote("README.md", "where both e_u and e_σu are\nlowest at δp = {}: at", lambda: lowest[:1]))
     assert lowest[0] == lowest[1], lowest
+
+
+def test_the_first_experiments_side_by_side_sweep_is_as_quoted(first):
+    """The two variants along the noise level: each ratio at no noise (recomputed from metrics.csv) and where it
+    crosses 1 (as table.md's *Between variants* gives it)."""
+    m = pd.read_csv(first["both"] / "metrics.csv")
+    assert set(m["sweep_variant"]) == {"liu_eps0.1", "proposed_d1.5"} and m["param_value"].nunique() == 6
+    means = m[m.metric == "std"].groupby(["signal", "param_value", "sweep_variant"])["value"].mean()
+    ratio = {s: (means[s].xs("proposed_d1.5", level="sweep_variant") / means[s].xs("liu_eps0.1", level="sweep_variant"))
+             for s in ("u", "sigma_u")}
+    table = (first["both"] / "table.md").read_text()
+    equal = {s: float(md_row(table, "noise", s, "proposed_d1.5 / liu_eps0.1")[7]) for s in ("u", "sigma_u")}
+    assert_quote_holds(Quote("README.md", "without noise the proposed estimator's e_u is {}× Liu's and its e_σu {}×,\nand "
+                             "its ratio to Liu's crosses 1 at {} of the noise for e_σu and at {} for e_u",
+                             lambda: [ratio["u"].iloc[0], ratio["sigma_u"].iloc[0], equal["sigma_u"], equal["u"]]))
+    assert ratio["sigma_u"].iloc[-1] < 1 < ratio["sigma_u"].iloc[0]  # better with the noise, worse without
 
 
 def test_the_custom_observer_example_is_as_quoted(tmp_path):
