@@ -194,3 +194,10 @@ def test_the_heat_map_stars_the_lowest_point_and_crosses_the_variants_tuning(mon
     grid.grid_figure(m.assign(value=1.0), ["J_tot"], exp, tmp_path / "flat.png")
     flat = figures[1].axes[0]
     assert [line.get_marker() for line in flat.get_lines()] == ["x"] and not isinstance(flat.collections[0].norm, LogNorm)
+    # two variants side by side, two signals: a row per variant, each crossed at its own tuning (the NPO has no k)
+    both = pd.concat([m.assign(sweep_variant=v, signal=sig) for v in ("resetting", "npo") for sig in ("z", "x")])
+    two = exp.model_copy(update={"sweep": exp.sweep.model_copy(update={"variants": ["resetting", "npo"]})})
+    grid.grid_figure(both, ["J_tot"], two, tmp_path / "both.png")
+    panels = [ax for ax in figures[2].axes if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == ["J_tot: resetting", "J_tot: resetting, x", "J_tot: npo", "J_tot: npo, x"]
+    assert [[line.get_marker() for line in ax.get_lines()] for ax in panels] == [["*", "x"], ["*", "x"], ["*"], ["*"]]

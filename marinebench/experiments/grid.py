@@ -116,16 +116,20 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str =
 
 
 def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
-    """One heat map per metric (rows) and group and signal (columns): the seed-mean KPI over the grid on a log
-    colour scale, its lowest point starred, the swept variant's own tuning (each variant's, when several were swept)
-    marked ×."""
+    """One heat map per metric (rows; a row per variant too, when several were swept) and group and signal
+    (columns): the seed-mean KPI over the grid on a log colour scale, its lowest point starred, the swept variant's
+    own tuning (each variant's) marked ×."""
     p1, p2 = _axes(metrics)
-    per_metric = {metric: grid_surfaces(metrics, metric, exp.sweep.signals) for metric in shown}
-    cols = max(len(s) for s in per_metric.values())
-    fig, axes = plt.subplots(len(shown), cols, figsize=(4.6 * cols, 3.8 * len(shown)), squeeze=False)
+    several = "sweep_variant" in metrics.columns  # then a surface's curve is named after its variant first
+    rows = []  # (metric, the surfaces side by side)
+    for metric in shown:
+        surfaces = grid_surfaces(metrics, metric, exp.sweep.signals)
+        for variant in dict.fromkeys(g.split("/")[0] for g, _ in surfaces) if several else [None]:
+            rows.append((metric, {k: m for k, m in surfaces.items() if variant is None or k[0].split("/")[0] == variant}))
+    cols = max(len(s) for _, s in rows)
+    fig, axes = plt.subplots(len(rows), cols, figsize=(4.6 * cols, 3.8 * len(rows)), squeeze=False)
     own = {v: (tuning(exp, p1, v), tuning(exp, p2, v)) for v in exp.sweep.swept}
-    several = "sweep_variant" in metrics.columns  # then a panel's curve is named after its variant first
-    for row, (metric, surfaces) in enumerate(per_metric.items()):
+    for row, (metric, surfaces) in enumerate(rows):
         for ax in axes[row, len(surfaces):]:
             ax.axis("off")
         for ax, ((g, sig), m) in zip(axes[row], surfaces.items()):
