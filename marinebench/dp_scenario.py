@@ -184,10 +184,8 @@ class DpWorld:
         B = len(seed_of_run)
         seeds = sorted({int(s) for s in seed_of_run})
         where = np.searchsorted(seeds, seed_of_run)
-        per_run = per_run or {}
-        s = sc.sensors
-        gnss = np.asarray(per_run.get("gnss_sigma", np.full(B, s.gnss_sigma)), dtype=float)
-        heading = np.deg2rad(np.asarray(per_run.get("heading_sigma_deg", np.full(B, s.heading_sigma_deg)), dtype=float))
+        s, own = sc.sensors, sc.per_run_values(per_run, B)
+        gnss, heading = own["gnss_sigma"], np.deg2rad(own["heading_sigma_deg"])
         self.sigma = np.stack([gnss, gnss, heading], axis=1)  # (B, 3) GM driving std
         if s.sigma_is == "stationary":
             self.sigma = self.sigma * np.sqrt(1.0 - np.exp(-2.0 * s.ts / s.gm_time_constant))

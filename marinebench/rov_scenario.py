@@ -201,8 +201,7 @@ class RovWorld:
         self.sc, self.plant = sc, LeonardLike(sc.vessel)
         B = len(seed_of_run)
         # each run's value of the per-run world keys (a variant's `world:`), the scenario's own where none is given
-        own = {key: np.asarray((per_run or {}).get(key, np.full(B, value)), dtype=float)
-               for key, value in sc.per_run_defaults().items()}
+        own = sc.per_run_values(per_run, B)
         seeds = sorted({int(s) for s in seed_of_run})
         where = np.searchsorted(seeds, seed_of_run)
         n = int(np.ceil(sc.horizon / sc.dt)) + 2

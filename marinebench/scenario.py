@@ -101,6 +101,12 @@ class ScenarioBase(BaseModel):
         parameter), each with this scenario's own value, which the other runs take. None by default."""
         return {}
 
+    def per_run_values(self, per_run: dict[str, np.ndarray] | None, runs: int) -> dict[str, np.ndarray]:
+        """Every per-run world key over the ``runs``: the values ``per_run`` gives (``runner.per_run_world``), else this
+        scenario's own."""
+        return {key: np.asarray((per_run or {}).get(key, np.full(runs, own)), dtype=float)
+                for key, own in self.per_run_defaults().items()}
+
     def check_per_run(self, world: dict[str, float]) -> None:
         """A variant's per-run world settings (their keys are checked against :meth:`per_run_defaults`): raises
         pydantic's ValidationError for a value the world's own field would refuse. Nothing to check by default."""
