@@ -388,10 +388,10 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
 def _points(df: pd.DataFrame) -> list[str]:
     """Each sweep run's point: its parameter value(s), and its world group unless that is the only ``default``
     (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``)."""
-    grid = "param2" in df.columns
-    return [f"{p}={v:g}" + (f", {p2}={v2:g}" if grid else "") + ("" if g == "default" else f", {g}")
-            for p, v, p2, v2, g in zip(df["param"], df["param_value"], df["param2"] if grid else df["param"],
-                                       df["param2_value"] if grid else df["param_value"], df["gnss"])]
+    labels = df["param"] + "=" + df["param_value"].map("{:g}".format)
+    if "param2" in df.columns:
+        labels += ", " + df["param2"] + "=" + df["param2_value"].map("{:g}".format)
+    return list(labels + np.where(df["gnss"] == "default", "", ", " + df["gnss"]))
 
 
 def headline(table: pd.DataFrame) -> str:
