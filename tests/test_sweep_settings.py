@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
+from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
 from marinebench.experiments.sweep import sweep_experiment
 from marinebench.loading import load_checked, load_experiment, preflight
 
@@ -18,6 +19,19 @@ from .conftest import ROOT
 
 OBSERVERS = ROOT / "configs" / "tijjani_observers.yaml"
 TABLE3 = ROOT / "configs" / "tijjani_table3.yaml"
+
+
+def test_a_sweep_key_is_a_path_in_the_variants_settings():
+    assert setting_path("k") == ["observer", "k"]  # a bare key is an observer field
+    assert setting_path("controller.yaw.alpha") == ["controller", "yaw", "alpha"]
+    settings = {"observer": {"k": 0.5}, "controller": {"yaw": {}}}
+    assert setting_at(settings, ["observer", "k"]) == 0.5
+    assert setting_at(settings, ["observer", "eps"]) is MISSING
+    assert setting_at(settings, ["observer", "k", "x"]) is MISSING  # below a number
+    assert setting_at(settings, ["controller", "yaw", "alpha"]) is None  # a declared mapping's key, not set yet
+    put_setting(settings, ["world", "gnss_sigma"], 1.5)
+    put_setting(settings, ["controller", "yaw", "alpha"], 2.0)
+    assert settings == {"observer": {"k": 0.5}, "controller": {"yaw": {"alpha": 2.0}}, "world": {"gnss_sigma": 1.5}}
 
 
 def test_sweep_points_set_the_swept_gain_and_keep_the_rest_of_the_variant():

@@ -26,7 +26,8 @@ from matplotlib.colors import LogNorm
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
-from marinebench.experiments.sweep import _get, _path, curve_heading, curves_of, sweep_claims
+from marinebench.experiments.settings import setting_at, setting_path
+from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
 from marinebench.results.claims import Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import simulated_on
 
@@ -56,12 +57,12 @@ def tuning(exp: Experiment, param: str, variant: str | None = None) -> float | N
     if ps.fixed:
         return None
     base = next(v for v in exp.variants if v.name == (variant or exp.sweep.variant))
-    path = _path(ps.key)
+    path = setting_path(ps.key)
     scenario = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario
     if path[0] == "world":
         value = base.world.get(path[1], scenario.per_run_defaults().get(path[1]))
     else:
-        value = _get(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
+        value = setting_at(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
     if value is None and path[0] == "observer" and len(path) == 3 and path[1] in ("cdo", "eo"):
         value = getattr(base.observer.resolve(scenario)[path[1] == "eo"], path[2], None)  # the scenario's CDO/EO
     if value is None and path[0] == "controller" and len(path) == 3 and path[1] in ("depth", "yaw"):

@@ -28,6 +28,7 @@ from scipy.stats import spearmanr
 from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.config import Experiment, SweepSpec, Variant
 from marinebench.errors import ClusterError, ConfigError
+from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
 from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
@@ -156,14 +157,14 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
         for key, value in ps.fixed.items():
             if key.startswith("world."):
                 _check_key(settings, key, base.name, scenario, swept_groups, file, f"sweep.params.{p}.fixed")
-            _set(settings, _path(key), value)
+            put_setting(settings, setting_path(key), value)
     grids = [spec.params[p].values(n) for p in axes]
     variants = []
     for index in itertools.product(*(range(n) for _ in axes)):
         values = [float(points[i]) for points, i in zip(grids, index)]
         point = copy.deepcopy(settings)
         for p, value in zip(axes, values):
-            _set(point, _path(spec.params[p].key), value)
+            put_setting(point, setting_path(spec.params[p].key), value)
         tags = {"param": axes[0], "param_value": values[0]}
         if len(axes) == 2:
             tags |= {"param2": axes[1], "param2_value": values[1]}
@@ -184,9 +185,6 @@ def _points(spec: SweepSpec, base: Variant, axes: list[str], groups: list[str], 
     return variants
 
 
-_MISSING = object()
-
-
 def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: dict[str, dict], file: Path, where: str) -> None:
     """A sweep key names a setting of the variant, or a per-run world key of its scenario that no group sets when
     several ``groups`` are swept."""
@@ -199,34 +197,9 @@ def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: di
         if clash and len(groups) > 1:
             raise ConfigError(file, where, f"'{key}' is also set by world group(s) {clash}, which would not differ in it: "
                               "sweep it in one group (--groups NAME), whose value it replaces, or in groups that do not set it")
-    elif _get(settings, _path(key)) is _MISSING:
+    elif setting_at(settings, setting_path(key)) is MISSING:
         raise ConfigError(file, where, f"'{key}' is not a setting of variant '{variant}' (an observer field, or a path "
                           f"under observer., controller. or world.)")
-
-
-def _path(key: str) -> list[str]:
-    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…``/``world.…``
-    as given."""
-    parts = key.split(".")
-    return parts if parts[0] in ("observer", "controller", "world") else ["observer", *parts]
-
-
-def _get(doc: dict, path: list[str]):
-    """The value at ``path``; a key of a settings mapping (a controller's ``yaw`` gains, the CDO's overrides)
-    that is not set yet counts as present when the model declares that mapping."""
-    for i, part in enumerate(path):
-        if not isinstance(doc, dict):
-            return _MISSING
-        if part not in doc:
-            return None if i == len(path) - 1 and i >= 2 else _MISSING
-        doc = doc[part]
-    return doc
-
-
-def _set(doc: dict, path: list[str], value) -> None:
-    for part in path[:-1]:
-        doc = doc.setdefault(part, {})
-    doc[path[-1]] = value
 
 
 Curves = dict[tuple[str, str, str], pd.DataFrame]
