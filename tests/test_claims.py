@@ -12,7 +12,16 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.loading import load_experiment
-from marinebench.results.claims import bootstrap_ci, evaluate, manifest_entries, markdown
+from marinebench.results.claims import (
+    NARROW_NOTE,
+    Check,
+    Region,
+    bootstrap_ci,
+    evaluate,
+    manifest_entries,
+    markdown,
+    summary_line,
+)
 
 from .conftest import ROOT, md_row, tidy_metrics, write_tiny
 
@@ -221,6 +230,48 @@ def test_claims_md_gives_each_verdict_and_check_row(tmp_path):
     assert manifest_entries(res)[2] == {"text": "unknown metric", "source": "", "holds": False,
                                         "not_checked": res[2].not_checked}
     assert manifest_entries(res)[0] == {"text": "a below b", "source": "Table IV", "holds": False}
+
+
+@pytest.mark.parametrize(("region", "ci", "holds", "firm"), [
+    (Region(-np.inf, 1.0), (0.8, 0.95), True, True),  # wholly below the bound
+    (Region(-np.inf, 1.0), (0.8, 1.05), True, False),  # holds on the means, the interval reaches across
+    (Region(-np.inf, 1.0), (0.98, 1.2), False, False),
+    (Region(-np.inf, 1.0), (1.02, 1.2), False, True),
+    (Region(-np.inf, 1.0), (1.0, 1.0), False, True),  # equal: fails '< 1' on every draw
+    (Region(-np.inf, 1.0, closed=True), (1.0, 1.0), True, True),  # ... and holds '≤ 1'
+    (Region(0.9, 1.1, closed=True), (0.95, 1.05), True, True),  # a two-sided bound (within, near_paper)
+    (Region(0.9, 1.1, closed=True), (0.95, 1.15), True, False),
+    (Region(0.9, 1.1, closed=True), (0.5, 1.5), False, False),  # fails on the means; the interval spans the band
+    (Region(0.9, 1.1, closed=True), (1.15, 1.3), False, True),
+    (Region(0.5, np.inf), (0.6, 0.7), True, True),  # a lower bound (trends, groups)
+    (Region(0.5, np.inf), None, True, None),  # no interval (one seed): not judged
+])
+def test_a_check_is_firm_when_its_interval_is_on_the_verdicts_side(region, ci, holds, firm):
+    assert Check("s", "u", {}, 1.0, ci, "", holds, region).firm is firm
+
+
+def test_a_verdict_whose_interval_crosses_the_bound_is_marked_narrow(tmp_path):
+    """Means 0.967 : 1 hold, but the seeds scatter across 1: claims.md, the summary and the manifest say
+    'narrowly'; a failing claim is narrow only when all its failing checks are."""
+    exp, _ = load_experiment(tiny_with_claims(tmp_path, [
+        {"kind": "less", "a": A, "b": B, "signals": ["u"], "text": "a below b"},
+        {"kind": "less", "a": B, "b": A, "signals": ["u"], "text": "b below a"},
+        {"kind": "less", "a": A, "b": B, "signals": ["u", "sigma_u"], "text": "a below b on both"}]))
+    res = evaluate(exp, planted({(A, "u"): [0.5, 1.5, 0.9], (B, "u"): [1.0, 1.0, 1.0],
+                                 (A, "sigma_u"): [3.0, 3.1, 3.2], (B, "sigma_u"): [1.0, 1.1, 1.2]}))
+    assert [r.holds for r in res] == [True, False, False]
+    u = res[0].checks[0]
+    assert u.statistic == pytest.approx(2.9 / 3) and u.ci[0] < 1 < u.ci[1] and u.firm is False
+    assert [r.narrow for r in res] == [True, True, False]  # the third fails firmly on sigma_u
+    assert summary_line(res) == "1 of 3 claims hold; 2 narrowly (a 95% interval across the bound)"
+    md = markdown(exp, res).splitlines()
+    assert md[2].endswith(NARROW_NOTE)
+    assert "| 1 | holds (narrowly) | a below b |  | std |" in md and "| 3 | **fails** | a below b on both |  | std |" in md
+    assert [row.removesuffix(" |").rsplit(" | ", 1)[1] for row in md[-4:]] == [
+        "holds (narrowly)", "**fails** (narrowly)", "holds (narrowly)", "**fails**"]  # claims 1, 2; 3 on u, sigma_u
+    assert [e.get("narrowly", False) for e in manifest_entries(res)] == [True, True, False]
+    firm = evaluate(exp, METRICS)[0]
+    assert firm.holds and firm.checks[0].firm and not firm.narrow and NARROW_NOTE not in markdown(exp, [firm])
 
 
 def test_malformed_claim_is_a_config_error(tmp_path):

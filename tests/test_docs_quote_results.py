@@ -345,6 +345,18 @@ def _tuned_yaw(scenario: str) -> list[float]:
     return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
 
 
+def _sweep_claim(sweep: str, text: str) -> list[float]:
+    """A committed sweep's claim rechecked on its metrics: each group's statistic and 95 % interval; the claim's
+    checks must be narrow (their interval across the bound) for the 5-seed sweep and firm for more seeds."""
+    from marinebench.experiments.sweep import sweep_claims
+    from marinebench.loading import load_experiment
+
+    exp, _ = load_experiment(ROOT / "results" / sweep / "config.resolved.yaml")
+    (res,) = (r for r in sweep_claims(_metrics(sweep), exp.sweep) if r.claim.text.startswith(text))
+    assert res.narrow == (exp.seeds == 5), f"{sweep}: '{text}' is {'' if res.narrow else 'not '}narrow"
+    return [x for c in res.checks for x in (c.statistic, *c.ci)]
+
+
 @cache
 def _analysis(name: str):
     """A script of docs/analysis/ as a module (run here, from the designs, not read from a file)."""
@@ -421,6 +433,10 @@ QUOTES = [
           _eps_changes),
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
           _eps_changes),
+    Quote("docs/commands.md", "c_ε claim is (J_tot ratio {} [{}, {}]\n  differential, {} [{}, {}] dual-band)",
+          lambda: _sweep_claim("torben_fig3_sweep_5seeds", "c_ε = 0.1 is worse")),
+    Quote("docs/commands.md", "20 seeds decide it ({} [{}, {}] and {} [{}, {}],",
+          lambda: _sweep_claim("torben_fig3_sweep_eps_20seeds", "c_ε = 0.1 is worse")),
     Quote("docs/torben.md", "records {} s of simulation ({} s summed over the two batches), {} s for the command",
           lambda: [manifest("torben_fig3_sweep")[k] for k in ("wall_time_s", "batch_time_s", "total_time_s")]),
     Quote("README.md", "J(k = 0.7) vs J(k = 0): {} % differential, {} % dual-band",
@@ -589,6 +605,19 @@ def assert_quote_holds(quote: Quote) -> None:
 @pytest.mark.parametrize("quote", QUOTES, ids=str)
 def test_the_docs_quote_the_committed_results(quote):
     assert_quote_holds(quote)
+
+
+def test_no_verdict_of_the_committed_experiments_is_narrow():
+    """docs/commands.md: every claim of the 16 experiments, rechecked on its committed metrics, has a firm verdict
+    (the 95 % interval of each deciding check on the verdict's side of its bound)."""
+    from marinebench.loading import load_experiment
+    from marinebench.results.claims import evaluate
+
+    configs = sorted((ROOT / "configs").glob("*.yaml"))
+    assert len(configs) == 16 and "No verdict\n  of the 16 experiments is narrow." in (ROOT / "docs" / "commands.md").read_text()
+    narrow = [f"{c.stem}: {r.claim.text}" for c in configs for r in evaluate(load_experiment(c)[0], _metrics(c.stem))
+              if r.narrow]
+    assert not narrow, narrow
 
 
 def test_a_misquoted_number_is_caught():

@@ -28,7 +28,7 @@ from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
 from marinebench.experiments.settings import setting_at, setting_path
 from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
-from marinebench.results.claims import Check, format_check, on_seeds, statistic_note
+from marinebench.results.claims import NARROW_NOTE, Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import simulated_on
 
 Surfaces = dict[tuple[str, str], pd.DataFrame]
@@ -216,7 +216,9 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
              (f"Each claim of the sweep about one of the two parameters, checked as in a one-at-a-time sweep on "
               f"{on_seeds(exp.seeds)} (root seed {exp.seed}) along its parameter, on every slice of the other. The "
               "paper states each claim at its own tuning of the other parameter, so this maps where the statement holds; "
-              "it is not a verdict. " + statistic_note(exp.seeds) + simulated_on(exp.model_label())), "",
+              "it is not a verdict. " + statistic_note(exp.seeds) + simulated_on(exp.model_label())
+              + (f" {NARROW_NOTE}" if any(c.firm is False for r in results for cs in r.slices.values() for c in cs) else "")),
+             "",
              "| # | claim | source | metric | along | holds at | fails at |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)

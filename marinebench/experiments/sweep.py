@@ -31,7 +31,7 @@ from marinebench.errors import ClusterError, ConfigError
 from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
 from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
-from marinebench.results.claims import Check, ClaimResult, bootstrap_ci
+from marinebench.results.claims import Check, ClaimResult, Region, bootstrap_ci
 from marinebench.results.stored import read_tidy
 from marinebench.results.tables import simulated_on
 
@@ -434,7 +434,7 @@ def _probe_check(claim: ProbeClaim, c: pd.DataFrame, log: bool, group: str, sig:
     ratio = float(np.nanmean(at) / np.nanmean(vs))
     ci = bootstrap_ci([at, vs], lambda x, y: np.nanmean(x) / np.nanmean(y))
     means = {f"{claim.param}={claim.at:g}": float(np.nanmean(at)), f"{claim.param}={claim.vs:g}": float(np.nanmean(vs))}
-    return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", bool(ratio < claim.factor))
+    return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", bool(ratio < claim.factor), Region(-np.inf, claim.factor))
 
 
 def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
@@ -449,7 +449,8 @@ def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig:
     sign = -1.0 if claim.decreasing else 1.0
     means = {f"{claim.param}={v:g}": float(np.nanmean(_at(c, v, log))) for v in claim.range}
     needs = f"{'<' if claim.decreasing else '>'} {sign * claim.min_rho:+g} (Spearman ρ)"
-    return Check(group, sig, means, r, bootstrap_ci([values], rho), needs, bool(sign * r > claim.min_rho))
+    region = Region(-np.inf, -claim.min_rho) if claim.decreasing else Region(claim.min_rho, np.inf)
+    return Check(group, sig, means, r, bootstrap_ci([values], rho), needs, bool(sign * r > claim.min_rho), region)
 
 
 def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, sig: str, above_name: str | None = None,
@@ -466,7 +467,7 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
     means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
     return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest),
-                 f"> {1 / claim.factor:.3g} at every value", bool(ratio * claim.factor > 1))
+                 f"> {1 / claim.factor:.3g} at every value", bool(ratio * claim.factor > 1), Region(1 / claim.factor, np.inf))
 
 
 def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:

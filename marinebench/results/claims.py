@@ -22,9 +22,23 @@ from marinebench.config import Experiment
 from marinebench.results.tables import simulated_on
 
 
+@dataclass(frozen=True)
+class Region:
+    """The values of a check's statistic that hold (its ``needs`` in numbers): from ``lo`` to ``hi``, the ends
+    included when ``closed`` (``≤``, ``within``, ``in [..]``) and not for the strict ``<`` and ``>``."""
+
+    lo: float
+    hi: float
+    closed: bool = False
+
+    def __contains__(self, x: float) -> bool:
+        return self.lo <= x <= self.hi if self.closed else self.lo < x < self.hi
+
+
 @dataclass
 class Check:
-    """One scenario (or sweep group) and signal of a claim."""
+    """One scenario (or sweep group) and signal of a claim. ``region``: the values of the statistic that hold,
+    to tell whether its interval decides the verdict (:attr:`firm`)."""
 
     where: str
     signal: str
@@ -33,6 +47,19 @@ class Check:
     ci: tuple[float, float] | None
     needs: str
     holds: bool
+    region: Region | None = None
+
+    @property
+    def firm(self) -> bool | None:
+        """Whether the 95 % interval lies wholly on the verdict's side of the bound: inside ``region`` for a check
+        that holds, outside it for one that fails. False: another draw of seeds could give the other verdict (the
+        check is *narrow*). None without an interval (one seed, or a largest value over seeds)."""
+        if self.ci is None or self.region is None:
+            return None
+        (a, b), region = self.ci, self.region
+        if self.holds:
+            return a in region and b in region
+        return a not in region and b not in region and not (a < region.lo and b > region.hi)
 
 
 @dataclass
@@ -49,6 +76,16 @@ class ClaimResult:
     @property
     def fails(self) -> bool:
         return self.not_checked is None and not self.holds
+
+    @property
+    def narrow(self) -> bool:
+        """The verdict rests on narrow checks (:attr:`Check.firm` False): a claim that holds with any of them, a
+        claim that fails by them alone. More seeds decide it."""
+        if self.not_checked is not None or not self.checks:
+            return False
+        if self.holds:
+            return any(c.firm is False for c in self.checks)
+        return all(c.firm is False for c in self.checks if not c.holds)
 
 
 def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, metric: str) -> pd.Series:
@@ -132,9 +169,10 @@ class _Cell:
         """Each variant's mean over seeds (computed once per cell, shared by its checks)."""
         return {v: float(s.mean()) if len(s) else math.nan for v, s in self.series.items()}
 
-    def check(self, stat: float, ci, needs: str, holds: bool, shown: list[str]) -> Check:
+    def check(self, stat: float, ci, needs: str, holds: bool, shown: list[str],
+              region: Region | None = None) -> Check:
         return Check(self.scenario, self.signal, {v: self.means[v] for v in shown}, stat, ci, needs,
-                     bool(holds) and math.isfinite(stat))
+                     bool(holds) and math.isfinite(stat), region)
 
 
 def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Check]:
@@ -158,7 +196,7 @@ def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> l
         a, b = _aligned([cell.series[lo], cell.series[hi]])
         ratio = _ratio(means[lo], means[hi])
         ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
-        out.append(cell.check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi]))
+        out.append(cell.check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi], Region(-math.inf, factor)))
     return out
 
 
@@ -170,13 +208,15 @@ def _within_checks(cell: _Cell, claim: WithinClaim, variants: list[str]) -> list
         ratio = _ratio(max(means.values()), min(means.values()))
         ci = bootstrap_ci(_aligned(list(cell.series.values())),
                           lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
-        return [cell.check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor, variants)]
+        return [cell.check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor, variants,
+                           Region(-math.inf, claim.factor, closed=True))]
     first, out = variants[0], []
     for other in variants[1:]:
         x, y = _aligned([cell.series[other], cell.series[first]])
         ratio = _ratio(means[other], means[first])
         ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
-        out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other]))
+        out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other],
+                              Region(1 - claim.rtol, 1 + claim.rtol, closed=True)))
     return out
 
 
@@ -193,7 +233,7 @@ def _near_paper_checks(exp, cell: _Cell, claim: NearPaperClaim, variants: list[s
         ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p)
         lo, hi = 1 / claim.factor, claim.factor
         out.append(Check(cell.scenario, cell.signal, {v: means[v], "paper": paper / scale}, ratio, ci,
-                         f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi))
+                         f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi, Region(lo, hi, closed=True)))
     return out
 
 
@@ -202,8 +242,18 @@ def _num(x: float) -> str:
 
 
 def summary_line(results: list[ClaimResult]) -> str:
-    skipped = sum(r.not_checked is not None for r in results)
-    return f"{sum(r.holds for r in results)} of {len(results)} claims hold" + (f", {skipped} not checked" if skipped else "")
+    skipped, narrow = sum(r.not_checked is not None for r in results), sum(r.narrow for r in results)
+    return (f"{sum(r.holds for r in results)} of {len(results)} claims hold" + (f", {skipped} not checked" if skipped else "")
+            + (f"; {narrow} narrowly (a 95% interval across the bound)" if narrow else ""))
+
+
+#: claims.md's note on narrow verdicts, when it has any.
+NARROW_NOTE = ("*Narrowly*: the 95% interval of the check reaches across the bound, so another draw of seeds could "
+               "give the other verdict; more seeds (`--seeds N`) decide it.")
+
+
+def _verdict(holds: bool, narrow: bool) -> str:
+    return ("holds" if holds else "**fails**") + (" (narrowly)" if narrow else "")
 
 
 def on_seeds(seeds: int) -> str:
@@ -225,11 +275,12 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
     lines = [f"## Claims checked: {title}", "",
              (f"Checked on {on_seeds(exp.seeds)}, root seed {exp.seed}, per {where} and signal."
               f"{simulated_on(exp.model_label())} "
-              f"{statistic_note(exp.seeds)} A claim holds when every check holds on the means."), "",
+              f"{statistic_note(exp.seeds)} A claim holds when every check holds on the means."
+              + (f" {NARROW_NOTE}" if any(r.narrow for r in results) else "")), "",
              f"**{summary_line(results)}.**", "",
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
-        verdict = "holds" if r.holds else "**fails**" if r.fails else f"not checked: {r.not_checked}"
+        verdict = _verdict(r.holds, r.narrow) if r.not_checked is None else f"not checked: {r.not_checked}"
         lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric or '–'} |")
     lines += ["", f"| # | {where} | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
@@ -243,10 +294,10 @@ def format_check(i: int, c: Check, where: str | None = None) -> str:
     """One row of the checks table of claim ``i`` (``where``: the first column, default the check's own)."""
     means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
     stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
-    return (f"| {i} | {where or c.where} | {c.signal} | {means} | {stat} | {c.needs} | "
-            f"{'holds' if c.holds else '**fails**'} |")
+    return f"| {i} | {where or c.where} | {c.signal} | {means} | {stat} | {c.needs} | {_verdict(c.holds, c.firm is False)} |"
 
 
 def manifest_entries(results: list[ClaimResult]) -> list[dict]:
     return [{"text": r.claim.text, "source": r.claim.source, "holds": r.holds}
-            | ({"not_checked": r.not_checked} if r.not_checked else {}) for r in results]
+            | ({"not_checked": r.not_checked} if r.not_checked else {}) | ({"narrowly": True} if r.narrow else {})
+            for r in results]
