@@ -3,7 +3,8 @@
 A claim is checked per scenario and signal on the means over seeds, the numbers the table shows. Beside
 the verdict, its statistic (a ratio of means, or the largest value over seeds) gets a 95 % bootstrap
 interval over seeds: the same seed draws resampled for every variant (the variants of one seed share its
-world), so a claim that holds on these means but would not on another draw of seeds is visible. Paper
+world), so a claim that holds on these means but would not on another draw of seeds is visible: its verdict is
+marked *narrowly* when the interval reaches across the claim's bound (:attr:`Check.firm`). Paper
 values enter only ``near_paper`` claims, and only as the yardstick.
 """
 
