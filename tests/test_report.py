@@ -137,10 +137,13 @@ def test_report_shows_each_manifest_and_the_claims_overview(report, tmp_path):
 def test_claims_overview_counts_what_holds_and_lists_what_fails(tmp_path):
     claims = [{"text": "a > b", "source": "T", "holds": True}, {"text": "c | d", "source": "T", "holds": False},
               {"text": "unchecked", "source": "T", "holds": False, "not_checked": "no such signal"}]
-    for name, entries in (("x", claims), ("y", []), ("z", claims[:1])):
+    narrow = [{"text": "e < f", "source": "T", "holds": True, "narrowly": True},
+              {"text": "g < h", "source": "T", "holds": False, "narrowly": True}]
+    for name, entries in (("x", claims), ("y", []), ("z", claims[:1]), ("w", narrow)):
         (tmp_path / name).mkdir()
         (tmp_path / name / "manifest.json").write_text(json.dumps({"claims": entries}))
-    md = claims_overview({n: tmp_path / n for n in ("x", "y", "z")})
-    rows = [line for line in md.splitlines() if line.startswith(("| x", "| y", "| z"))]
-    assert rows == ["| x | 1\u00a0of\u00a03 | c / d |", "| z | 1\u00a0of\u00a01 |  |"]
+    md = claims_overview({n: tmp_path / n for n in ("x", "y", "z", "w")})
+    rows = [line for line in md.splitlines() if line.startswith(("| x", "| y", "| z", "| w"))]
+    assert rows == ["| x | 1\u00a0of\u00a03 | c / d |", "| z | 1\u00a0of\u00a01 |  |",
+                    "| w | 1\u00a0of\u00a02 (1 narrowly) | g < h (narrowly) |"]
     assert claims_overview({"y": tmp_path / "y"}) == ""

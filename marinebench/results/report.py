@@ -79,14 +79,18 @@ def _manifest_html(d: Path) -> str:
 
 
 def claims_overview(dirs: dict[str, Path]) -> str:
-    """A markdown table of the claims of every result directory (from the manifests): how many hold."""
+    """A markdown table of the claims of every result directory (from the manifests): how many hold, and which
+    fail; a verdict whose interval reaches across its bound is marked *narrowly*."""
     rows = []
     for name, d in dirs.items():
         claims = read_manifest(d).get("claims", [])
         if claims:
-            failing = [c["text"] for c in claims if not c["holds"] and not c.get("not_checked")]
-            rows.append(f"| {name} | {sum(c['holds'] for c in claims)}\u00a0of\u00a0{len(claims)} | "
-                        + "; ".join(failing).replace("|", "/") + " |")
+            held = [c for c in claims if c["holds"]]
+            narrow = sum(bool(c.get("narrowly")) for c in held)
+            failing = [c["text"] + (" (narrowly)" if c.get("narrowly") else "")
+                       for c in claims if not c["holds"] and not c.get("not_checked")]
+            rows.append(f"| {name} | {len(held)}\u00a0of\u00a0{len(claims)}" + (f" ({narrow} narrowly)" if narrow else "")
+                        + " | " + "; ".join(failing).replace("|", "/") + " |")
     if not rows:
         return ""
     return "\n".join(["## The papers' claims", "", "Checked on our runs (each experiment's claims.md below).", "",
