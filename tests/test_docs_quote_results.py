@@ -608,13 +608,14 @@ def test_the_docs_quote_the_committed_results(quote):
 
 
 def test_no_verdict_of_the_committed_experiments_is_narrow():
-    """docs/commands.md: every claim of the 16 experiments, rechecked on its committed metrics, has a firm verdict
+    """docs/commands.md and the README: every claim of the 16 experiments, rechecked on its committed metrics, has a firm verdict
     (the 95 % interval of each deciding check on the verdict's side of its bound)."""
     from marinebench.loading import load_experiment
     from marinebench.results.claims import evaluate
 
     configs = sorted((ROOT / "configs").glob("*.yaml"))
     assert len(configs) == 16 and "No verdict\n  of the 16 experiments is narrow." in (ROOT / "docs" / "commands.md").read_text()
+    assert "and no verdict is *narrow*" in (ROOT / "README.md").read_text()
     narrow = [f"{c.stem}: {r.claim.text}" for c in configs for r in evaluate(load_experiment(c)[0], _metrics(c.stem))
               if r.narrow]
     assert not narrow, narrow
