@@ -56,7 +56,7 @@ def test_one_seed_has_no_interval_and_its_table_and_claims_say_so(tmp_path):
     assert len(rows) == 3 and not any("[" in row for row in rows)
     claims = (tmp_path / "bejarano_fig6" / "claims.md").read_text()
     assert "Checked on one seed, root seed 2024" in claims and "; one seed gives no interval." in claims
-    assert "bootstrap interval" not in claims
+    assert "bootstrap standard error" not in claims
 
 
 def test_rerun_replaces_results_atomically(tiny_config, tmp_path):

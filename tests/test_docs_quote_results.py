@@ -345,6 +345,14 @@ def _tuned_yaw(scenario: str) -> list[float]:
     return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
 
 
+@cache
+def _coverage(seeds: int) -> tuple[float, float]:
+    """The claims' 95 % interval's coverage of a ratio of means, and the percentile interval's (tests/test_claims.py)."""
+    from .test_claims import coverage
+
+    return coverage(seeds)
+
+
 def _sweep_claim(sweep: str, text: str) -> list[float]:
     """A committed sweep's claim rechecked on its metrics: each group's statistic and 95 % interval; the claim's
     checks must be narrow (their interval across the bound) for the 5-seed sweep and firm for more seeds."""
@@ -433,6 +441,8 @@ QUOTES = [
           _eps_changes),
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
           _eps_changes),
+    Quote("docs/commands.md", "covers a ratio of means in {} % of\n  draws at 3 seeds and {} % at 5, where this one covers {} % and {} %",
+          lambda: [100 * x for x in (_coverage(3)[1], _coverage(5)[1], _coverage(3)[0], _coverage(5)[0])]),
     Quote("docs/commands.md", "c_ε claim is (J_tot ratio {} [{}, {}]\n  differential, {} [{}, {}] dual-band)",
           lambda: _sweep_claim("torben_fig3_sweep_5seeds", "c_ε = 0.1 is worse")),
     Quote("docs/commands.md", "20 seeds decide it ({} [{}, {}] and {} [{}, {}],",

@@ -1,11 +1,11 @@
 """The paper's claims about an experiment (``claims:`` in its config), checked on our runs: ``claims.md``.
 
 A claim is checked per scenario and signal on the means over seeds, the numbers the table shows. Beside
-the verdict, its statistic (a ratio of means, or the largest value over seeds) gets a 95 % bootstrap
-interval over seeds: the same seed draws resampled for every variant (the variants of one seed share its
-world), so a claim that holds on these means but would not on another draw of seeds is visible: its verdict is
-marked *narrowly* when the interval reaches across the claim's bound (:attr:`Check.firm`). Paper
-values enter only ``near_paper`` claims, and only as the yardstick.
+the verdict, its statistic (a ratio of means, or the largest value over seeds) gets a 95 % interval over seeds
+from its bootstrap standard error (:func:`bootstrap_ci`), the same seed draws resampled for every variant (the
+variants of one seed share its world), so a claim that holds on these means but would not on another draw of
+seeds is visible: its verdict is marked *narrowly* when the interval reaches across the claim's bound
+(:attr:`Check.firm`). Paper values enter only ``near_paper`` claims, and only as the yardstick.
 """
 
 from __future__ import annotations
@@ -14,9 +14,11 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Literal
 
 import numpy as np
 import pandas as pd
+from scipy.stats import t as student_t
 
 from marinebench.claims import LessClaim, NearPaperClaim, OrderClaim, WithinClaim
 from marinebench.config import Experiment
@@ -96,19 +98,36 @@ def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, m
 
 
 def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: float = 0.95, n_boot: int = 2000,
-                 seed: int = 0) -> tuple[float, float] | None:
-    """Percentile interval of ``stat(*values)`` with the seeds (rows, aligned across ``values``) resampled."""
+                 seed: int = 0, scale: Literal["linear", "log"] = "linear",
+                 bounds: tuple[float, float] = (-math.inf, math.inf)) -> tuple[float, float] | None:
+    """Interval of ``stat(*values)`` over seeds: the statistic ± the Student-t quantile (n − 1 degrees of freedom)
+    times its bootstrap standard error, the seeds (rows, aligned across ``values``) resampled together and the
+    spread of the resampled statistic scaled by sqrt(n / (n − 1)) (a resample's plug-in bias).
+
+    ``scale="log"`` (a ratio of means): the interval of the statistic's log, mapped back, so that it stays positive
+    and is as asymmetric as a ratio's (linear when the statistic or a resample is not positive). ``bounds`` clips
+    the interval to the statistic's range (Spearman's ρ: [−1, 1]).
+
+    Why not the percentiles of the resampled statistic: with a run's few seeds they are too narrow (the resamples
+    only recombine the seeds drawn). Their nominal 95 % covers a ratio of means in 74 % of draws at 3 seeds and
+    82 % at 5, where this interval covers 94 % and 92 % (``coverage`` in tests/test_claims.py measures both)."""
     n = len(values[0])
     if n < 2:
         return None
-    idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-    with np.errstate(divide="ignore", invalid="ignore"):  # a draw of zero means is dropped below
-        draws = np.array([stat(*(v[i] for v in values)) for i in idx])
+    with np.errstate(divide="ignore", invalid="ignore"):  # a zero mean makes the statistic infinite or nan
+        estimate = float(stat(*values))
+        idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
+        draws = np.array([stat(*(v[i] for v in values)) for i in idx], dtype=float)
     draws = draws[np.isfinite(draws)]
-    if not draws.size:
+    if not math.isfinite(estimate) or draws.size < 2:
         return None
-    alpha = (1 - level) / 2
-    return float(np.quantile(draws, alpha)), float(np.quantile(draws, 1 - alpha))
+    log = scale == "log" and estimate > 0 and bool((draws > 0).all())
+    centre, spread = (math.log(estimate), np.log(draws).std()) if log else (estimate, draws.std())
+    half = float(student_t.ppf(0.5 + level / 2, n - 1) * spread * math.sqrt(n / (n - 1)))
+    if np.ptp(draws) <= 1e-12 * abs(estimate):  # the same value on every seed (to rounding)
+        return estimate, estimate
+    lo, hi = (math.exp(centre - half), math.exp(centre + half)) if log else (centre - half, centre + half)
+    return max(lo, bounds[0]), min(hi, bounds[1])
 
 
 def _ratio(a: float, b: float) -> float:
@@ -196,7 +215,7 @@ def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> l
     for lo, hi in pairs:
         a, b = _aligned([cell.series[lo], cell.series[hi]])
         ratio = _ratio(means[lo], means[hi])
-        ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
+        ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean(), scale="log")
         out.append(cell.check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi], Region(-math.inf, factor)))
     return out
 
@@ -208,14 +227,14 @@ def _within_checks(cell: _Cell, claim: WithinClaim, variants: list[str]) -> list
     if claim.factor is not None:
         ratio = _ratio(max(means.values()), min(means.values()))
         ci = bootstrap_ci(_aligned(list(cell.series.values())),
-                          lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs))
+                          lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs), scale="log")
         return [cell.check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor, variants,
                            Region(-math.inf, claim.factor, closed=True))]
     first, out = variants[0], []
     for other in variants[1:]:
         x, y = _aligned([cell.series[other], cell.series[first]])
         ratio = _ratio(means[other], means[first])
-        ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean())
+        ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean(), scale="log")
         out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other],
                               Region(1 - claim.rtol, 1 + claim.rtol, closed=True)))
     return out
@@ -231,7 +250,7 @@ def _near_paper_checks(exp, cell: _Cell, claim: NearPaperClaim, variants: list[s
         d = exp.table.display.get(f"{metric}/{cell.signal}")
         scale = d.scale if d is not None else 1.0
         ratio = means[v] * scale / paper
-        ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p)
+        ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p, scale="log")
         lo, hi = 1 / claim.factor, claim.factor
         out.append(Check(cell.scenario, cell.signal, {v: means[v], "paper": paper / scale}, ratio, ci,
                          f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi, Region(lo, hi, closed=True)))
@@ -265,8 +284,9 @@ def on_seeds(seeds: int) -> str:
 def statistic_note(seeds: int) -> str:
     """The sentence of a claims.md's preamble on the statistic and its interval (none from one seed)."""
     return ("The statistic is what the claim bounds (a ratio of means; the largest value over seeds for `≤` claims; "
-            "Spearman's ρ for trends)" + (", with a 95% bootstrap interval over seeds (the same seeds resampled for "
-                                          "every variant)." if seeds > 1 else "; one seed gives no interval."))
+            "Spearman's ρ for trends)" + (", with a 95% interval over seeds: Student's t on its bootstrap standard "
+                                          "error (the same seeds resampled for every variant; in log for ratios)."
+                                          if seeds > 1 else "; one seed gives no interval."))
 
 
 def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario", title: str | None = None) -> str:
