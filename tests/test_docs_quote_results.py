@@ -345,6 +345,18 @@ def _tuned_yaw(scenario: str) -> list[float]:
     return [mean(TUNED, v, "yaw", "rmse", scenario, scale=e2) for v in variants]
 
 
+def _claim_check(experiment: str, text: str, signal: str, scenario: str | None = None) -> list[float]:
+    """A committed experiment's claim rechecked on its metrics: the statistic and 95 % interval of one signal's check
+    (in ``scenario``, for a claim checked in several)."""
+    from marinebench.loading import load_experiment
+    from marinebench.results.claims import evaluate
+
+    exp, _ = load_experiment(ROOT / "configs" / f"{experiment}.yaml")
+    (res,) = (r for r in evaluate(exp, _metrics(experiment)) if r.claim.text.startswith(text))
+    (check,) = (c for c in res.checks if c.signal == signal and scenario in (None, c.where))
+    return [check.statistic, *check.ci]
+
+
 @cache
 def _coverage(seeds: int) -> tuple[float, float]:
     """The claims' 95 % interval's coverage of a ratio of means, and the percentile interval's (tests/test_claims.py)."""
@@ -441,6 +453,19 @@ QUOTES = [
           _eps_changes),
     Quote("README.md", "6 % *better* for both GNSS models ({} % [{}, {}],\n  {} % [{}, {}])",
           _eps_changes),
+    Quote("docs/bejarano.md", "ratio of δ = 2.2 to Liu ε = 0.1 on e_u is {} [{}, {}] and to δ = 1.2 {} [{}, {}] (95 %",
+          lambda: _claim_check(T4, "the proposed δ = 2.2 beats", "u") + _claim_check(T4, "proposed: faster tuning", "u")),
+    Quote("README.md", "(paired ratio {} [{}, {}])", lambda: _claim_check(T4, "the proposed δ = 2.2 beats", "u")),
+    Quote("docs/tijjani.md", "S+RISE/RISE in yaw is\n  {} [{}, {}] in S1, paired over seeds",
+          lambda: _claim_check(T3, "yaw RMSE of S+RISE below", "yaw", "S1")),
+    Quote("docs/tijjani.md", "(S+RISE/RISE {} [{}, {}], CDO-S+RISE/S+RISE\n  {} [{}, {}];",
+          lambda: _claim_check(TUNED, "yaw RMSE of S+RISE below", "yaw", "S1")
+          + _claim_check(TUNED, "yaw RMSE of CDO-S+RISE", "yaw", "S1")),
+    Quote("docs/tijjani.md", "the tuned S+RISE falls behind the tuned RISE ({}× [{}, {}])",
+          lambda: _claim_check(TUNED, "yaw RMSE of S+RISE below", "yaw", "S2-C2")),
+    Quote("docs/tijjani.md", "EO's 0.64 cm ({}× [{}, {}]) and 0.108 against 0.035 rad\n  ({}× [{}, {}])",
+          lambda: _claim_check(OBS, "no peaking larger than the EO's in the transient (depth", "depth")
+          + _claim_check(OBS, "no peaking larger than the EO's in the transient (depth", "yaw")),
     Quote("docs/commands.md", "covers a ratio of means in {} % of\n  draws at 3 seeds and {} % at 5, where this one covers {} % and {} %",
           lambda: [100 * x for x in (_coverage(3)[1], _coverage(5)[1], _coverage(3)[0], _coverage(5)[0])]),
     Quote("docs/commands.md", "c_ε claim is (J_tot ratio {} [{}, {}]\n  differential, {} [{}, {}] dual-band)",
