@@ -357,6 +357,21 @@ def _claim_check(experiment: str, text: str, signal: str, scenario: str | None =
     return [check.statistic, *check.ci]
 
 
+def _grid_claim(sweep: str, text: str, slices: list[tuple[float, str]]) -> list[float]:
+    """A committed grid sweep's claim rechecked on its metrics: the statistic and 95 % interval at each (slice value,
+    group)."""
+    from marinebench.experiments.grid import grid_claims
+    from marinebench.loading import load_experiment
+
+    exp, _ = load_experiment(ROOT / "results" / sweep / "config.resolved.yaml")
+    (res,) = (r for r in grid_claims(_metrics(sweep), exp.sweep) if r.claim.text.startswith(text))
+    out = []
+    for value, group in slices:
+        (check,) = (c for v, checks in res.slices.items() if np.isclose(v, value) for c in checks if c.where == group)
+        out += [check.statistic, *check.ci]
+    return out
+
+
 @cache
 def _coverage(seeds: int) -> tuple[float, float]:
     """The claims' 95 % interval's coverage of a ratio of means, and the percentile interval's (tests/test_claims.py)."""
@@ -466,6 +481,14 @@ QUOTES = [
     Quote("docs/tijjani.md", "EO's 0.64 cm ({}× [{}, {}]) and 0.108 against 0.035 rad\n  ({}× [{}, {}])",
           lambda: _claim_check(OBS, "no peaking larger than the EO's in the transient (depth", "depth")
           + _claim_check(OBS, "no peaking larger than the EO's in the transient (depth", "yaw")),
+    Quote("docs/torben.md", "J(5)/J(0.1) is {} [{}, {}] differential and {} [{}, {}] dual-band at k = 0.7, both narrowly",
+          lambda: _grid_claim("torben_fig3_sweep_grid_k_eps_5seeds", "c_ε = 0.1 is worse", [(0.7, "dgnss"), (0.7, "dualband")])),
+    Quote("docs/torben.md", "at k = 0.8, narrowly ({} [{}, {}]), and at 0.9 and 1 ({} [{}, {}]; {} [{}, {}]), and for "
+          "dual-band only at k = 1, narrowly ({} [{}, {}])",
+          lambda: _grid_claim("torben_fig3_sweep_grid_k_eps_5seeds", "c_ε = 0.1 is worse",
+                              [(0.8, "dgnss"), (0.9, "dgnss"), (1.0, "dgnss"), (1.0, "dualband")])),
+    Quote("docs/torben.md", "5 seeds J(c_ε = 5)/J(c_ε = 0.1) is {} [{}, {}] differential and {} [{}, {}] dual-band",
+          lambda: _sweep_claim("torben_fig3_sweep_5seeds", "c_ε = 0.1 is worse")),
     Quote("docs/commands.md", "covers a ratio of means in {} % of\n  draws at 3 seeds and {} % at 5, where this one covers {} % and {} %",
           lambda: [100 * x for x in (_coverage(3)[1], _coverage(5)[1], _coverage(3)[0], _coverage(5)[0])]),
     Quote("docs/commands.md", "c_ε claim is (J_tot ratio {} [{}, {}]\n  differential, {} [{}, {}] dual-band)",
