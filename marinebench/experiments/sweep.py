@@ -434,7 +434,8 @@ def _probe_check(claim: ProbeClaim, c: pd.DataFrame, log: bool, group: str, sig:
     ratio = float(np.nanmean(at) / np.nanmean(vs))
     ci = bootstrap_ci([at, vs], lambda x, y: np.nanmean(x) / np.nanmean(y), scale="log")
     means = {f"{claim.param}={claim.at:g}": float(np.nanmean(at)), f"{claim.param}={claim.vs:g}": float(np.nanmean(vs))}
-    return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", bool(ratio < claim.factor), Region(-np.inf, claim.factor))
+    region = Region(-np.inf, claim.factor)
+    return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", ratio in region, region)
 
 
 def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
@@ -451,7 +452,7 @@ def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig:
     needs = f"{'<' if claim.decreasing else '>'} {sign * claim.min_rho:+g} (Spearman ρ)"
     region = Region(-np.inf, -claim.min_rho) if claim.decreasing else Region(claim.min_rho, np.inf)
     ci = bootstrap_ci([values], rho, bounds=(-1.0, 1.0))
-    return Check(group, sig, means, r, ci, needs, bool(sign * r > claim.min_rho), region)
+    return Check(group, sig, means, r, ci, needs, r in region, region)
 
 
 def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, sig: str, above_name: str | None = None,
@@ -467,8 +468,9 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     ratio = lowest(a, b)
     at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
     means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
+    region = Region(1 / claim.factor, np.inf)
     return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest, scale="log"),
-                 f"> {1 / claim.factor:.3g} at every value", bool(ratio * claim.factor > 1), Region(1 / claim.factor, np.inf))
+                 f"> {region.lo:.3g} at every value", ratio in region, region)
 
 
 def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:

@@ -121,11 +121,11 @@ def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: fl
     draws = draws[np.isfinite(draws)]
     if not math.isfinite(estimate) or draws.size < 2:
         return None
+    if np.ptp(draws) <= 1e-12 * abs(estimate):  # the same value on every seed (to rounding)
+        return estimate, estimate
     log = scale == "log" and estimate > 0 and bool((draws > 0).all())
     centre, spread = (math.log(estimate), np.log(draws).std()) if log else (estimate, draws.std())
     half = float(student_t.ppf(0.5 + level / 2, n - 1) * spread * math.sqrt(n / (n - 1)))
-    if np.ptp(draws) <= 1e-12 * abs(estimate):  # the same value on every seed (to rounding)
-        return estimate, estimate
     lo, hi = (math.exp(centre - half), math.exp(centre + half)) if log else (centre - half, centre + half)
     return max(lo, bounds[0]), min(hi, bounds[1])
 
@@ -189,10 +189,10 @@ class _Cell:
         """Each variant's mean over seeds (computed once per cell, shared by its checks)."""
         return {v: float(s.mean()) if len(s) else math.nan for v, s in self.series.items()}
 
-    def check(self, stat: float, ci, needs: str, holds: bool, shown: list[str],
-              region: Region | None = None) -> Check:
+    def check(self, stat: float, ci, needs: str, region: Region, shown: list[str]) -> Check:
+        """The check of ``stat``: it holds when it is finite and in ``region`` (``needs`` says it in words)."""
         return Check(self.scenario, self.signal, {v: self.means[v] for v in shown}, stat, ci, needs,
-                     bool(holds) and math.isfinite(stat), region)
+                     math.isfinite(stat) and stat in region, region)
 
 
 def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Check]:
@@ -206,7 +206,7 @@ def _checks(exp, metrics, claim, variants, scenario, signal, metric) -> list[Che
     if isinstance(claim, NearPaperClaim):
         return _near_paper_checks(exp, cell, claim, variants, metric)
     worst = float(cell.series[claim.a].max()) if len(cell.series[claim.a]) else math.nan  # AtMostClaim
-    return [cell.check(worst, None, f"≤ {claim.value:g}", worst <= claim.value, variants)]
+    return [cell.check(worst, None, f"≤ {claim.value:g}", Region(-math.inf, claim.value, closed=True), variants)]
 
 
 def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> list[Check]:
@@ -216,7 +216,7 @@ def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> l
         a, b = _aligned([cell.series[lo], cell.series[hi]])
         ratio = _ratio(means[lo], means[hi])
         ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean(), scale="log")
-        out.append(cell.check(ratio, ci, f"< {factor:g}", ratio < factor, [lo, hi], Region(-math.inf, factor)))
+        out.append(cell.check(ratio, ci, f"< {factor:g}", Region(-math.inf, factor), [lo, hi]))
     return out
 
 
@@ -228,15 +228,14 @@ def _within_checks(cell: _Cell, claim: WithinClaim, variants: list[str]) -> list
         ratio = _ratio(max(means.values()), min(means.values()))
         ci = bootstrap_ci(_aligned(list(cell.series.values())),
                           lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs), scale="log")
-        return [cell.check(ratio, ci, f"≤ {claim.factor:g}", ratio <= claim.factor, variants,
-                           Region(-math.inf, claim.factor, closed=True))]
+        return [cell.check(ratio, ci, f"≤ {claim.factor:g}", Region(-math.inf, claim.factor, closed=True), variants)]
     first, out = variants[0], []
     for other in variants[1:]:
         x, y = _aligned([cell.series[other], cell.series[first]])
         ratio = _ratio(means[other], means[first])
         ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean(), scale="log")
-        out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", abs(ratio - 1) <= claim.rtol, [first, other],
-                              Region(1 - claim.rtol, 1 + claim.rtol, closed=True)))
+        out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", Region(1 - claim.rtol, 1 + claim.rtol, closed=True),
+                              [first, other]))
     return out
 
 
@@ -251,9 +250,9 @@ def _near_paper_checks(exp, cell: _Cell, claim: NearPaperClaim, variants: list[s
         scale = d.scale if d is not None else 1.0
         ratio = means[v] * scale / paper
         ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p, scale="log")
-        lo, hi = 1 / claim.factor, claim.factor
+        region = Region(1 / claim.factor, claim.factor, closed=True)
         out.append(Check(cell.scenario, cell.signal, {v: means[v], "paper": paper / scale}, ratio, ci,
-                         f"in [{lo:.3g}, {hi:g}]", lo <= ratio <= hi, Region(lo, hi, closed=True)))
+                         f"in [{region.lo:.3g}, {region.hi:g}]", ratio in region, region))
     return out
 
 
