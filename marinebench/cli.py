@@ -517,6 +517,9 @@ def compare(
     all_cells: Annotated[bool, typer.Option("--all", help="list 'same' and 'new' cells too (markdown; json and "
                                             "csv always hold every cell)")] = False,
     unpaired: Unpaired = False,
+    interval: Annotated[str | None, typer.Option(metavar="bootstrap|t", help="the CI of a paired comparison: 'bootstrap' "
+                                                 "(default between runs: the gate's consistency check) or 't' (the paired "
+                                                 "Student t interval, for differences that are noise; default with --variants)")] = None,
 ) -> None:
     """Compare results cell by cell over seeds (paired on seed, bootstrap CIs; or --unpaired); exit 1 if worse.
 
@@ -525,16 +528,21 @@ def compare(
 
     if not (rtol >= 0 and atol >= 0):  # nan fails too
         fail("--rtol/--atol: tolerances must be non-negative numbers")
+    if interval not in (None, "bootstrap", "t"):
+        fail(f"--interval: 'bootstrap' or 't', not '{interval}'")
+    if interval is not None and unpaired:
+        fail("--interval: chooses the CI of a paired comparison; --unpaired always uses Welch's t interval")
     tol = Tolerance(rtol=rtol, atol=atol)
     with one_line_errors():
         if variants is not None:
             if candidate is not None:
                 fail("give either CANDIDATE or --variants A B, not both")
-            table = compare_variants(baseline, variants[0], variants[1], metric, tol, paired=not unpaired)
+            table = compare_variants(baseline, variants[0], variants[1], metric, tol, paired=not unpaired,
+                                     interval=interval or "t")
         else:
             if candidate is None:
                 fail("missing CANDIDATE (or use --variants A B)")
-            table = compare_dirs(baseline, candidate, metric, tol, paired=not unpaired)
+            table = compare_dirs(baseline, candidate, metric, tol, paired=not unpaired, interval=interval or "bootstrap")
     if fmt is Format.md:
         text = to_markdown(table, all_cells=all_cells, paired=not unpaired)
     elif fmt is Format.json:

@@ -263,6 +263,27 @@ def test_variant_comparison_inside_one_run(tmp_path, base_values):
     assert "paired Student t interval" in res.output
 
 
+def test_interval_chooses_the_ci_of_a_paired_comparison(tmp_path, base_values):
+    """--interval t between two runs (e.g. one-variant sweeps of two variants) gives the paired t interval and says so
+    under the table; --interval bootstrap with --variants the gate's; a wrong value or one with --unpaired is one
+    line, exit 2."""
+    cand = dict(base_values)
+    cand[("a", "u")] = base_values[("a", "u")] * 1.5
+    write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "cand", "exp", cand)
+    t = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--interval", "t", "--format", "json"])
+    (u,) = [c for c in json.loads(t.output)["cells"] if c["variant"] == "a" and c["signal"] == "u"]
+    lo, hi = paired_t_ci(base_values[("a", "u")] * 0.5)
+    assert t.exit_code == 1 and (u["ci_low"], u["ci_high"]) == pytest.approx((lo, hi))
+    md = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--interval", "t"]).output
+    assert "paired Student t interval" in md
+    boot = runner.invoke(app, ["compare", str(tmp_path / "base"), "--variants", "a", "b", "--interval", "bootstrap"])
+    assert "paired Student t interval" not in boot.output
+    for bad, says in ((["--interval", "z"], "--interval: 'bootstrap' or 't'"), (["--interval", "t", "--unpaired"], "Welch")):
+        res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), *bad])
+        assert res.exit_code == 2 and says in res.output and len(res.output.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("seeds", [2, 3, 5])
 def test_the_paired_t_interval_holds_its_level_on_differences_that_are_noise(seeds):
     """Per-seed differences drawn around zero: the 95 % interval excludes zero in 5 % of 2000 draws (within 4

@@ -35,6 +35,7 @@ from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
 from marinebench.results.stored import read_manifest, read_metrics, read_resolved
 
+Interval = Literal["bootstrap", "t"]  # the CI of a paired comparison (compare --interval)
 HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
 KEYS = ["experiment", "scenario", "variant", "signal", "metric"]
 SEVERITY = {"worse": 0, "missing": 1, "new": 2, "better": 3, "same": 4}
@@ -251,7 +252,7 @@ def _samples(b: pd.DataFrame, c: pd.DataFrame, paired: bool) -> tuple[np.ndarray
 
 
 def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS,
-                   paired: bool = True, interval: Literal["bootstrap", "t"] = "bootstrap") -> pd.DataFrame:
+                   paired: bool = True, interval: Interval = "bootstrap") -> pd.DataFrame:
     """One row per cell with baseline, candidate, change, CI and verdict, sorted by severity. Paired, the CI is
     the percentile bootstrap of the differences (the gate's consistency check) or, with ``interval="t"``, their
     Student t interval (:func:`paired_t_ci`: a test of differences that are noise, e.g. two variants)."""
@@ -352,9 +353,9 @@ def _config_name(manifest: dict) -> str | None:
 
 
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
-                 paired: bool = True) -> pd.DataFrame:
+                 paired: bool = True, interval: Interval = "bootstrap") -> pd.DataFrame:
     """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
-    most severe first."""
+    most severe first. ``interval``: of a paired comparison, as in :func:`compare_frames`."""
     bdirs, cdirs = find_results(baseline), find_results(candidate)
     bman, cman = ({name: read_manifest(d) for name, d in dirs.items()} for dirs in (bdirs, cdirs))
     bframe, cframe = load_metrics(bdirs), load_metrics(cdirs)
@@ -369,7 +370,9 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             cdirs, cman, cframe["experiment"] = {name: cdirs[other]}, {name: cman[other]}, name
             renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline), results of one config."
     check_compatible(bdirs, cdirs, paired)
-    table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired)
+    table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired, interval=interval)
+    if paired and interval == "t":
+        table.attrs["interval_note"] = T_NOTE
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bman), load_claims(cman))
         if len(claims):
@@ -381,14 +384,14 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     return table
 
 
-VARIANTS_NOTE = ("Two variants over the same seeds: their differences are noise, so the CI is the paired Student t "
-                 "interval (in % of the baseline's mean), not the gate's bootstrap.")  # under a --variants table
+T_NOTE = ("The CI is the paired Student t interval of the per-seed differences (in % of the baseline's mean), which "
+          "holds its level when they are noise, not the gate's bootstrap.")  # under a table with --interval t
 
 
 def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
-                     paired: bool = True) -> pd.DataFrame:
-    """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed with the
-    paired t interval (:func:`paired_t_ci`; unpaired: as independent samples, Welch's). In a sweep of several variants side by side (``sweep --variants``), point by point:
+                     paired: bool = True, interval: Interval = "t") -> pd.DataFrame:
+    """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed, by default
+    with the paired t interval (:func:`paired_t_ci`: their differences are noise); unpaired: as independent samples. In a sweep of several variants side by side (``sweep --variants``), point by point:
     the cells are the sweep's points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics)
     column = "sweep_variant" if "sweep_variant" in df.columns else "variant"
@@ -399,10 +402,10 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
     if column == "sweep_variant":
         df = df.assign(point=_points(df))
         keys.insert(2, "point")
-    out = compare_frames(df[df[column] == a], df[df[column] == b], tol, keys, paired, interval="t")
+    out = compare_frames(df[df[column] == a], df[df[column] == b], tol, keys, paired, interval)
     out.insert(2, "variant", [f"{p}: {b} vs {a}" for p in out.pop("point")] if "point" in out else f"{b} vs {a}")
-    if paired:
-        out.attrs["interval_note"] = VARIANTS_NOTE
+    if paired and interval == "t":
+        out.attrs["interval_note"] = T_NOTE
     return out
 
 
