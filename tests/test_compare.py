@@ -269,8 +269,9 @@ def test_interval_chooses_the_ci_of_a_paired_comparison(tmp_path, base_values):
     line, exit 2."""
     cand = dict(base_values)
     cand[("a", "u")] = base_values[("a", "u")] * 1.5
-    write_result(tmp_path / "base", "exp", base_values)
-    write_result(tmp_path / "cand", "exp", cand)
+    for side, values in (("base", base_values), ("cand", cand)):  # with a claim each: its rows join the cells' table
+        d = write_result(tmp_path / side, "exp", values)
+        (d / "manifest.json").write_text(json.dumps({"claims": [{"text": "a < b", "source": "", "holds": True}]}))
     t = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--interval", "t", "--format", "json"])
     (u,) = [c for c in json.loads(t.output)["cells"] if c["variant"] == "a" and c["signal"] == "u"]
     lo, hi = paired_t_ci(base_values[("a", "u")] * 0.5)

@@ -2,7 +2,7 @@
 
 Cells are (experiment, scenario, variant, signal, metric), paired on seed. For each cell: baseline and
 candidate means over their common seeds, the relative change, a paired bootstrap 95% CI of the mean
-change, and a verdict:
+change (or, ``interval="t"`` and by default between two variants, the paired Student t interval), and a verdict:
 
 - ``same``: |change| <= atol + rtol * |baseline| (or the CI contains zero);
 - ``worse`` / ``better``: outside the tolerance *and* the CI excludes zero (with a single seed, the
@@ -371,8 +371,6 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline), results of one config."
     check_compatible(bdirs, cdirs, paired)
     table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired, interval=interval)
-    if paired and interval == "t":
-        table.attrs["interval_note"] = T_NOTE
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bman), load_claims(cman))
         if len(claims):
@@ -381,6 +379,7 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
     require_pairs(table)
     table.attrs["machine_note"] = machine_note(machines(bman), machines(cman))
     table.attrs["renamed"] = renamed
+    table.attrs["interval_note"] = T_NOTE if paired and interval == "t" else ""
     return table
 
 
@@ -391,8 +390,8 @@ T_NOTE = ("The CI is the paired Student t interval of the per-seed differences (
 def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
                      paired: bool = True, interval: Interval = "t") -> pd.DataFrame:
     """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed, by default
-    with the paired t interval (:func:`paired_t_ci`: their differences are noise); unpaired: as independent samples. In a sweep of several variants side by side (``sweep --variants``), point by point:
-    the cells are the sweep's points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``)."""
+    with the paired t interval (:func:`paired_t_ci`: their differences are noise); unpaired: as independent samples.
+    In a sweep of several variants side by side (``sweep --variants``), point by point: the cells are the sweep's points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics)
     column = "sweep_variant" if "sweep_variant" in df.columns else "variant"
     for v in (a, b):
