@@ -198,6 +198,19 @@ def test_a_claim_that_no_longer_holds_is_worse(tmp_path, base_values):
     assert only_cells.exit_code == 0 and "claim" not in only_cells.output
 
 
+def test_a_claims_narrow_verdict_is_marked_on_its_side(tmp_path, base_values):
+    """A verdict the manifest marks narrowly (its 95 % interval across the bound) says so in its column of the
+    markdown and in the ``narrow`` field; the flip still counts (worse), as a gate must."""
+    for side, claim in (("base", {"holds": True}), ("cand", {"holds": False, "narrowly": True})):
+        d = write_result(tmp_path / side, "exp", base_values)
+        (d / "manifest.json").write_text(json.dumps({"claims": [{"text": "a < b", "source": "", **claim}]}))
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 1 and "| **WORSE** | exp | – | – | a < b | claim | holds | fails (narrowly) |" in res.output
+    cells = json.loads(runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"), "--format", "json"]).output)["cells"]
+    assert [c["narrow"] for c in cells if c["metric"] == "claim"] == ["candidate"]
+    assert {c["narrow"] for c in cells if c["metric"] != "claim"} == {""}
+
+
 def test_newly_diverged_run_is_worse(tmp_path, base_values):
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})

@@ -219,10 +219,11 @@ def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, 
 
 
 COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "rel_ci_low", "rel_ci_high", "n",
-           "n_candidate", "unpaired", "verdict"]
+           "n_candidate", "unpaired", "verdict", "narrow"]
 """After the cell's keys: the means over the compared runs, change, its CI, the relative change and its CI, ``n``
 baseline runs compared (the pairs, when paired) and ``n_candidate`` candidate runs (= ``n`` when paired),
-``unpaired`` seeds that only one side ran (left out of the pairing), verdict."""
+``unpaired`` seeds that only one side ran (left out of the pairing), verdict; for a claim, ``narrow``: the side(s)
+whose verdict was narrow (``baseline``, ``candidate`` or ``both``; its 95 % interval across the bound), else ''."""
 
 
 def _one_sided_row(row: dict, b: pd.DataFrame | None, c: pd.DataFrame | None) -> dict:
@@ -231,7 +232,7 @@ def _one_sided_row(row: dict, b: pd.DataFrame | None, c: pd.DataFrame | None) ->
         return np.nan if g is None else g[g["status"] == "ok"]["value"].mean()
     row.update(baseline=mean(b), candidate=mean(c), change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan,
                rel_ci_low=np.nan, rel_ci_high=np.nan, n=0, n_candidate=0, unpaired=0,
-               verdict="missing" if c is None else "new")
+               verdict="missing" if c is None else "new", narrow="")
     return row
 
 
@@ -287,7 +288,7 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
             verdict = "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
                    ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=bv.size, n_candidate=cv.size,
-                   unpaired=unpaired, verdict=verdict)
+                   unpaired=unpaired, verdict=verdict, narrow="")
         rows.append(row)
     out = pd.DataFrame(rows, columns=keys + COLUMNS)
     out["_sev"] = out["verdict"].map(SEVERITY)
@@ -302,13 +303,14 @@ def require_pairs(table: pd.DataFrame) -> None:
                                "signal, metric) and no claim: are these the right directories?")
 
 
-def load_claims(manifests: dict[str, dict]) -> dict[tuple[str, str], bool]:
-    """(experiment, claim text) -> holds, from the manifests (claims that could not be checked left out)."""
+def load_claims(manifests: dict[str, dict]) -> dict[tuple[str, str], tuple[bool, bool]]:
+    """(experiment, claim text) -> (holds, narrowly), from the manifests (claims that could not be checked left
+    out)."""
     out = {}
     for name, manifest in manifests.items():
         for c in manifest.get("claims", []):
             if not c.get("not_checked"):
-                out[name, c["text"]] = bool(c["holds"])
+                out[name, c["text"]] = bool(c["holds"]), bool(c.get("narrowly"))
     return out
 
 
@@ -331,17 +333,20 @@ def machine_note(base: set[str], cand: set[str]) -> str:
             "the last digits without any change of code.")
 
 
-def compare_claims(base: dict[tuple[str, str], bool], cand: dict[tuple[str, str], bool]) -> pd.DataFrame:
+def compare_claims(base: dict[tuple[str, str], tuple[bool, bool]],
+                   cand: dict[tuple[str, str], tuple[bool, bool]]) -> pd.DataFrame:
     """A row per claim (metric ``claim``, the text as signal, 1 = holds): ``worse`` when a claim that held no
-    longer does, ``better`` the other way; ``missing``/``new`` as for cells."""
+    longer does, ``better`` the other way; ``missing``/``new`` as for cells. ``narrow`` names the sides whose verdict
+    was narrow: a flip there may be the draw of seeds, not the change."""
     rows = []
     for key in sorted(set(base) | set(cand)):
-        b, c = base.get(key), cand.get(key)
+        (b, b_narrow), (c, c_narrow) = base.get(key, (None, False)), cand.get(key, (None, False))
         verdict = ("missing" if c is None else "new" if b is None else "same" if b == c else "worse" if b else "better")
+        narrow = {(True, True): "both", (True, False): "baseline", (False, True): "candidate"}.get((b_narrow, c_narrow), "")
         rows.append({"experiment": key[0], "scenario": "–", "variant": "–", "signal": key[1], "metric": "claim",
                      "baseline": np.nan if b is None else float(b), "candidate": np.nan if c is None else float(c),
                      "change": np.nan, "rel_change": np.nan, "ci_low": np.nan, "ci_high": np.nan, "n": 0,
-                     "n_candidate": 0, "unpaired": 0, "verdict": verdict})
+                     "n_candidate": 0, "unpaired": 0, "verdict": verdict, "narrow": narrow})
     return pd.DataFrame(rows, columns=KEYS + COLUMNS)
 
 
@@ -456,8 +461,9 @@ def _row(r, paired: bool) -> str:
     """One cell of the comparison as a markdown row; a claim (``metric == "claim"``) shows holds/fails per side."""
     if r.metric == "claim":
         held = {1.0: "holds", 0.0: "fails"}
-        return (f"| {ICONS[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | "
-                f"{held.get(r.baseline, '–')} | {held.get(r.candidate, '–')} | – | – | – |")
+        base, cand = (held.get(v, "–") + (" (narrowly)" if r.narrow in (side, "both") else "")
+                      for v, side in ((r.baseline, "baseline"), (r.candidate, "candidate")))
+        return f"| {ICONS[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | {base} | {cand} | – | – | – |"
     rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
     if np.isnan(r.ci_low):
         ci = "–"
