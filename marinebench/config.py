@@ -586,8 +586,8 @@ class Experiment(BaseModel):
         if twice:
             raise ValueError(f"sweep.variants: {twice} given more than once")
         for i, c in enumerate(self.sweep.claims):  # two groups, or two variants (checked when swept side by side)
-            pair = [c.above, c.below] if c.kind == "groups" else []
-            if not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
+            pair = [c.above, c.below] if c.kind == "groups" else None
+            if pair and not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
                 raise ValueError(f"sweep.claims.{i}: {pair} are neither two of the groups ({', '.join(self.sweep.groups)}) "
                                  f"nor two variants ({', '.join(names)})")
         for metric in self.sweep.shown:

@@ -462,11 +462,14 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     seeds = above.columns.intersection(below.columns)
     a, b = above[seeds].to_numpy(dtype=float).T, below[seeds].to_numpy(dtype=float).T  # rows: seeds
 
-    def lowest(x: np.ndarray, y: np.ndarray) -> float:
-        return float(np.nanmin(np.nanmean(x, axis=0) / np.nanmean(y, axis=0)))
+    def curve(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # the ratio of the mean curves, point by point
+        return np.nanmean(x, axis=0) / np.nanmean(y, axis=0)
 
-    ratio = lowest(a, b)
-    at = float(above.index[int(np.nanargmin(np.nanmean(a, axis=0) / np.nanmean(b, axis=0)))])
+    def lowest(x: np.ndarray, y: np.ndarray) -> float:
+        return float(np.nanmin(curve(x, y)))
+
+    ratios = curve(a, b)
+    ratio, at = float(np.nanmin(ratios)), float(above.index[int(np.nanargmin(ratios))])
     means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
     region = Region(1 / claim.factor, np.inf)
     return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest, scale="log"),
