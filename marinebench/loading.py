@@ -213,9 +213,16 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
     bpath = (path.parent / ref).resolve()
     if bpath in seen or bpath == path.resolve():
         raise ConfigError(path, "from", f"circular {what} reference to {ref}")
-    if not bpath.exists():
-        raise ConfigError(path, "from", f"{what} file not found: {ref}{_looked_in(ref, bpath)}")
+    _check_exists(bpath, ref, path, "from", what)
     return shown_path(bpath)  # errors in it then name it as the user would
+
+
+def _check_exists(resolved: Path, ref: str, path: Path, key: str, what: str) -> None:
+    """ConfigError at ``key`` of ``path`` unless the ``what`` file a reference ``ref`` names is a file."""
+    if resolved.is_dir():
+        raise ConfigError(path, key, f"{ref} is a folder, not a file")
+    if not resolved.exists():
+        raise ConfigError(path, key, f"{what} file not found: {ref}{_looked_in(ref, resolved)}")
 
 
 def _looked_in(ref: str, resolved: Path) -> str:
@@ -242,8 +249,7 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) 
     if not isinstance(ref, str):
         raise ConfigError(path, f"{key}.from", "expected a file path")
     spath = (path.parent / ref).resolve()
-    if not spath.exists():
-        raise ConfigError(path, key, f"scenario file not found: {ref}{_looked_in(ref, spath)}")
+    _check_exists(spath, ref, path, key, "scenario")
     origins[key] = shown_path(spath)
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path

@@ -110,6 +110,8 @@ BAD = {
     # a relative path is read from the config's folder, which the message shows
     "missing_scenario": (lambda d: d["scenario"].update({"from": "nowhere.yaml"}),
                          "scenario: scenario file not found: nowhere.yaml (relative to the file's folder: looked for /"),
+    # a folder where a file belongs: before, the line named neither the config nor its key
+    "scenario_is_a_folder": (lambda d: d["scenario"].update({"from": "."}), "scenario: . is a folder, not a file"),
     "infeasible_lmi": (lambda d: d["variants"][1]["observer"].update(delta_psi1=1.0, delta_p1=1.0, rho=1.2, r_max=5.0),
                        "variants.1.observer: positional LMI"),
     # the step is the scenario's, and the message names the variant whose poles need the smaller step
