@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
@@ -129,6 +130,11 @@ def test_a_sweep_of_several_variants_runs_each_at_every_point_as_alone(tmp_path)
     assert json.loads((d / "manifest.json").read_text())["variants"] == ["liu_eps0.1", "proposed_d2.2"]
     table = (d / "table.md").read_text()
     assert row(table, "noise", "u", "proposed_d2.2 / liu_eps0.1")[3] != "–" and (d / "figures" / "sweep.png").exists()
+    # its resolved config is the sweep that ran, a valid file: Table IV's delta_p1 is no setting of Liu's ESO
+    resolved = yaml.safe_load((d / "config.resolved.yaml").read_text())
+    assert list(resolved["sweep"]["params"]) == ["noise"] and resolved["sweep"]["variants"] == ["liu_eps0.1", "proposed_d2.2"]
+    res = CliRunner().invoke(app, ["validate", str(d / "config.resolved.yaml")])
+    assert res.exit_code == 0, res.output
     # a variant's runs are the same as in a sweep of it alone (runs do not depend on their batch)
     res = sweep(tmp_path / "alone", "noise", "--set", "sweep.variant=proposed_d2.2", *NOISE)
     assert res.exit_code == 0, res.output

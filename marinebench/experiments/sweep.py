@@ -111,6 +111,16 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                                   "scenario": scenario})
 
 
+def as_swept(exp: Experiment, params: list[str]) -> Experiment:
+    """The config a sweep of ``params`` ran, for its ``config.resolved.yaml``: ``sweep.params`` and
+    ``sweep.claims`` cut to those parameters. Every parameter of a file must be a setting of each swept variant,
+    and ``--variants`` may sweep a variant of which another parameter is no setting (``delta_p1`` beside Liu's
+    ESO), so the uncut config would not validate as a file."""
+    spec = exp.sweep
+    return exp.model_copy(update={"sweep": spec.model_copy(update={
+        "params": {p: spec.params[p] for p in params}, "claims": [c for c in spec.claims if c.param in params]})})
+
+
 def _with_horizon(exp: Experiment, horizon: float, file: Path) -> Any:
     """The experiment's world run for ``horizon`` seconds, validated as if the file said so (its metric windows,
     the step count)."""

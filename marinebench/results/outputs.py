@@ -17,7 +17,7 @@ from marinebench.experiments.grid import (
     tuning,
 )
 from marinebench.experiments.runner import RunResult
-from marinebench.experiments.sweep import sweep_claims, sweep_figure, sweep_table
+from marinebench.experiments.sweep import as_swept, sweep_claims, sweep_figure, sweep_table
 from marinebench.plotting.figures import timeseries, tracking
 from marinebench.provenance import inputs_key
 from marinebench.results.claims import ClaimResult, manifest_entries
@@ -128,7 +128,7 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
     table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
     with atomic_directory(target) as tmp:
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "config.resolved.yaml").write_text(resolved_yaml(base))
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)))
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
                                                 for metric in shown))
         if claims:
