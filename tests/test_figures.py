@@ -201,3 +201,15 @@ def test_tracking_of_one_dof_is_one_column(tmp_path, drawn):
     axes = drawn[0].axes
     assert len(axes) == 3 and [ax.get_ylabel() for ax in axes] == ["depth [m]", "error [m]", "tau_depth [N]"]
     assert drawn[0]._suptitle.get_text().startswith(f"{spec.file} (seed 0")
+
+
+def test_a_long_title_is_wrapped_to_the_figures_width_not_cut_off(tmp_path, drawn):
+    """Fig. 3's sweep figure is 7 in wide and its model label long: the title was cut off at both edges."""
+    fig, _ = figures.plt.subplots(figsize=(7, 3))
+    figures.save(fig, "torben_fig3: J_tot sensitivity\n(one parameter at a time, mean of 5 seeds (band: their range); "
+                 "model supply_shipx_lf (observers: supply_dp_linear))", tmp_path / "f.png")
+    title = fig._suptitle
+    box = title.get_window_extent(fig.canvas.get_renderer())
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width
+    assert title.get_text().startswith("torben_fig3: J_tot sensitivity\n") and title.get_text().count("\n") == 2
+    assert (tmp_path / "f.png").stat().st_size > 0

@@ -23,11 +23,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.colors import LogNorm
+from matplotlib.ticker import LogFormatterSciNotation
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
 from marinebench.experiments.settings import setting_at, setting_path
 from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
+from marinebench.plotting.figures import save
 from marinebench.results.claims import NARROW_NOTE, Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import simulated_on
 
@@ -116,6 +118,13 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str =
     return "\n".join([*lines, *summary, *notes, *blocks]) + "\n"
 
 
+class PlainLog(LogFormatterSciNotation):
+    """A log colour bar's ticks labelled where matplotlib labels them, but as plain numbers: 4, not 4×10⁰."""
+
+    def __call__(self, value, pos=None):
+        return f"{value:.3g}" if super().__call__(value, pos) else ""
+
+
 def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
     """One heat map per metric (rows; a row per variant too, when several were swept) and group and signal
     (columns): the seed-mean KPI over the grid on a log colour scale, its lowest point starred, the swept variant's
@@ -141,7 +150,9 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             log = [exp.sweep.params[p].spacing == "log" for p in (p2, p1)]
             mesh = ax.pcolormesh(_edges(m.columns.to_numpy(dtype=float), log[0]), _edges(m.index.to_numpy(dtype=float), log[1]),
                                  values, cmap="viridis", norm=norm)
-            fig.colorbar(mesh, ax=ax, label=metric)
+            bar = fig.colorbar(mesh, ax=ax, label=metric)
+            bar.ax.yaxis.set_major_formatter(PlainLog())
+            bar.ax.yaxis.set_minor_formatter(PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
             if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):  # a flat surface has no lowest point
                 i, j = np.unravel_index(np.nanargmin(values), values.shape)
                 ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
@@ -156,11 +167,8 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             ax.set_title(f"{metric}: {g}" + (f", {sig}" if sig != "z" else ""), fontsize=9)
             ax.legend(fontsize=7, loc="best")
     n_seeds = int(metrics["seed"].nunique())
-    fig.suptitle(f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else "")
-                 + f"\nmodel {exp.model_label()}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else "")
+         + f"\nmodel {exp.model_label()}", path)
 
 
 @dataclass

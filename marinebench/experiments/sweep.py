@@ -31,6 +31,7 @@ from marinebench.errors import ClusterError, ConfigError
 from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
 from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
+from marinebench.plotting.figures import save
 from marinebench.results.claims import Check, ClaimResult, Region, bootstrap_ci
 from marinebench.results.stored import read_tidy
 from marinebench.results.tables import simulated_on
@@ -524,11 +525,7 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
             ax.grid(alpha=0.3)
     n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    fig.suptitle(f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}; model "
-                 f"{exp.model_label()})", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}; model {exp.model_label()})", path)
 
 
 def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[str, float]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -16,6 +17,21 @@ UNITS = {"depth": "m", "yaw": "rad", "tau_depth": "N", "tau_yaw": "N m", "u": "m
          "x": "m", "y": "m", "psi": "rad", "b_x": "N", "b_y": "N", "b_n": "N m"}
 NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r",
          "x": "north x", "y": "east y", "psi": "heading ψ", "b_x": "bias b_N", "b_y": "bias b_E", "b_n": "bias b_ψ"}
+
+
+#: Title size (points) and resolution (dpi) of every figure marinebench writes.
+TITLE_SIZE, DPI = 10, 110
+
+
+def save(fig, title: str, path: Path) -> None:
+    """Title ``fig``, lay it out, write it to ``path`` and close it. Each line of ``title`` is wrapped to the
+    figure's width (at about 0.6 em a character), so a long model label such as ``supply_shipx_lf (observers:
+    supply_dp_linear)`` is not cut off at both edges of a one-column figure."""
+    chars = int(fig.get_figwidth() * 72 / (0.6 * TITLE_SIZE))
+    fig.suptitle("\n".join(textwrap.fill(line, chars) for line in title.split("\n")), fontsize=TITLE_SIZE)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
 
 
 def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tuple[list[str], dict[str, str], list[int]]:
@@ -85,11 +101,7 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
             axes[i * 2 + 1].set_ylabel(f"error [{UNITS.get(sig, '-')}]")
             axes[i * 2 + 1].axhline(0, color="k", lw=0.5)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle(f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0; model {exp.model_label()})",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, f"{spec.title or spec.file}\n(y axes scaled to t ≥ {after:g} s; seed 0; model {exp.model_label()})", path)
 
 
 def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
@@ -115,7 +127,4 @@ def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_
         bottom.set_xlabel("time [s]")
         for ax in (top, mid, bottom):
             ax.legend(loc="best", fontsize=7)
-    fig.suptitle(f"{spec.title or spec.file} (seed 0, model {exp.model_label()})", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, f"{spec.title or spec.file} (seed 0, model {exp.model_label()})", path)
