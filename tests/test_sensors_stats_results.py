@@ -1,4 +1,6 @@
+import json
 import re
+import shlex
 
 import numpy as np
 import pytest
@@ -318,3 +320,12 @@ def test_summary_per_cell_in_order_of_first_appearance_diverged_runs_counted_not
         assert (row["mean"], row["ci_low"], row["ci_high"]) == mean_ci(good)
     assert out.set_index(["variant", "signal"]).loc[("a", "u"), "n_diverged"] == 2
     assert summarise(df.iloc[:0]).empty
+
+
+def test_the_manifests_command_pastes_back_into_a_shell(monkeypatch):
+    """A --set with spaces and braces (the c_ε grid's) was recorded unquoted, so copying the command failed."""
+    argv = ["/venv/bin/marinebench", "sweep", "c_eps", "--set", 'sweep.params.c_eps={key: eps_scale, label: "c_ε"}']
+    monkeypatch.setattr(writer.sys, "argv", argv)
+    command = json.loads(writer.manifest())["command"]
+    assert shlex.split(command) == ["marinebench", *argv[1:]]
+    assert command.startswith("marinebench sweep c_eps --set 'sweep.params")

@@ -12,6 +12,7 @@ import glob
 import json
 import os
 import platform
+import shlex
 import shutil
 import socket
 import subprocess
@@ -210,7 +211,7 @@ def git_revision() -> str:
 def manifest(**fields) -> str:
     doc = {
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        "command": " ".join([Path(sys.argv[0]).name] + sys.argv[1:]),
+        "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),  # quoted: pastes back into a shell
         "git_revision": git_revision(),
         "versions": versions(),
         "machine": machine(),
