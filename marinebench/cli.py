@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 import signal
 import sys
 from collections.abc import Iterator
@@ -211,17 +212,34 @@ def _distinct_targets(configs: list[Path], base: Path) -> list[Path]:
     folder ``base/<stem>/``: the second would silently replace the first's results."""
     firsts: dict[str, Path] = {}
     for c in configs:
-        first = firsts.get(c.stem)
+        first = firsts.get(output_stem(c))
         if first is None:
-            firsts[c.stem] = c
+            firsts[output_stem(c)] = c
         elif first.resolve() != c.resolve():
             raise MarinebenchError(f"{c}: writes {_target(base, c)}, as {first} does; run them with different --out")
     return list(firsts.values())
 
 
 def _target(base: Path, config: Path) -> Path:
-    """The folder an experiment file's results go to: ``base/<config stem>/``."""
-    return base / config.stem
+    """The folder an experiment file's results go to: ``base/<config stem>/`` (:func:`output_stem`)."""
+    return base / output_stem(config)
+
+
+def output_stem(config: Path) -> str:
+    """What a config's result folder is named after: the file's stem, or for a result folder's
+    ``config.resolved.yaml`` the experiment's ``name`` in it, so that rerunning a result writes where the config it
+    was resolved from did (``results/torben_fig1/``), not to ``config.resolved/``."""
+    if config.name == "config.resolved.yaml":
+        from marinebench.config import NAME
+        from marinebench.loading import read_yaml
+
+        try:
+            name = read_yaml(config).get("name")
+        except ConfigError:  # loading the file reports it, naming the key
+            name = None
+        if isinstance(name, str) and re.fullmatch(NAME, name):
+            return name
+    return config.stem
 
 
 def _up_to_date(exp, target: Path, quiet: bool) -> int | None:
@@ -389,7 +407,7 @@ def sweep(
 
         preflight(exp, config)
     target = (out_dir if out_dir is not None else Path("results")) / (
-        config.stem + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
+        output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
     if known is not None:
         _claims_verdict(require_claims, known)

@@ -66,6 +66,24 @@ def test_rerun_replaces_results_atomically(tiny_config, tmp_path):
     assert [p.name for p in out.iterdir()] == ["tiny"]  # no temp or backup directories left
 
 
+def test_a_results_resolved_config_reruns_it_under_its_experiments_name(tiny_config, tmp_path):
+    """Not into ``config.resolved/``: a result reruns where its config wrote, with the same numbers."""
+    first, again = tmp_path / "first", tmp_path / "again"
+    assert runner.invoke(app, ["run", str(tiny_config), "--out", str(first), "--quiet"]).exit_code == 0
+    resolved = first / "tiny" / "config.resolved.yaml"
+    res = runner.invoke(app, ["run", str(resolved), "--out", str(again), "--quiet"])
+    assert res.exit_code == 0, res.output
+    assert [p.name for p in again.iterdir()] == ["tiny"]
+    assert (again / "tiny" / "metrics.csv").read_text() == (first / "tiny" / "metrics.csv").read_text()
+    # two results' resolved configs are two folders, not "two configs that would write one folder"
+    other = tmp_path / "other" / "config.resolved.yaml"
+    other.parent.mkdir()
+    other.write_text(resolved.read_text().replace("name: tiny", "name: tiny2"))
+    res = runner.invoke(app, ["run", str(resolved), str(other), "--out", str(again), "--quiet", "--jobs", "1"])
+    assert res.exit_code == 0, res.output
+    assert sorted(p.name for p in again.iterdir()) == ["tiny", "tiny2"]
+
+
 def test_resume_skips_experiments_whose_inputs_are_unchanged(tiny_config, tmp_path):
     out = tmp_path / "out"
     args = ["run", str(tiny_config), "--out", str(out)]
