@@ -30,7 +30,7 @@ from marinebench.settings import STRICT
 
 
 class LeonardLikeParams(BaseModel):
-    """Heave/yaw stand-in for the Leonard ROV (assumed values; see the module docstring)."""
+    """Heave/yaw stand-in for the Leonard ROV: 28 kg, +9 N buoyancy, BlueROV2-derived hydrodynamics (assumed)."""
 
     model_config = STRICT
     kind: Literal["leonard_like"] = "leonard_like"

@@ -29,7 +29,7 @@ class NoNoise(BaseModel):
 
 
 class BandLimitedUniform(BaseModel):
-    """Bounded multisine noise; see the module docstring."""
+    """Bounded, band-limited noise (Bejarano Assumption 3): a multisine in [f_low, f_high] saturated at ±bound."""
 
     model_config = STRICT
     kind: Literal["bandlimited_uniform"] = "bandlimited_uniform"
