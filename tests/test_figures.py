@@ -2,6 +2,7 @@
 batch), errors are truth minus estimate, axes are scaled to the steady state, labels carry units and model."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from marinebench.config import IntMetric
@@ -213,3 +214,28 @@ def test_a_long_title_is_wrapped_to_the_figures_width_not_cut_off(tmp_path, draw
     assert 0 <= box.x0 and box.x1 <= fig.bbox.width
     assert title.get_text().startswith("torben_fig3: J_tot sensitivity\n") and title.get_text().count("\n") == 2
     assert (tmp_path / "f.png").stat().st_size > 0
+
+
+def test_a_sweep_panel_marks_the_variants_own_value_and_labels_a_log_axis_in_plain_numbers(tmp_path, drawn):
+    """Fig. 3: a dotted line at Table I's k = 0.7 and δ = 2.5 s (none for c_ε, whose fixed ε hides the variant's own
+    value); δ's log axis reads 0.2 … 10, not 2×10⁻¹ … 10¹."""
+    from marinebench.experiments.sweep import sweep_figure
+
+    exp = load_experiment(ROOT / "configs" / "torben_fig3.yaml")[0]
+    values = {"k": [0.0, 0.5, 1.0], "delta": [0.15, 1.0, 10.0], "eps": [0.1, 1.0, 10.0]}
+    rows = [("torben_fig3", "s", "resetting", seed, "z", "J_tot", 10.0 + x + seed, "ok", p, x, g)
+            for p, xs in values.items() for x in xs for g in ("dgnss", "dualband") for seed in (0, 1)]
+    metrics = pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status",
+                                          "param", "param_value", "gnss"])
+    sweep_figure(metrics, ["J_tot"], exp, tmp_path / "sweep.png")
+    (fig,) = drawn
+    k_ax, delta_ax, eps_ax = fig.axes
+
+    def dotted(ax):
+        return [line.get_xdata()[0] for line in ax.get_lines() if line.get_linestyle() == ":"]
+
+    assert dotted(k_ax) == [0.7] and dotted(delta_ax) == [2.5] and dotted(eps_ax) == []
+    assert "dotted: resetting's own value" in " ".join(fig._suptitle.get_text().split())
+    fig.canvas.draw()
+    labels = {t.get_text() for t in delta_ax.get_xticklabels(which="both") if t.get_text()}
+    assert {"1", "10"} <= labels and not any("10^" in s or "times" in s for s in labels), labels

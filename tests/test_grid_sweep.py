@@ -43,7 +43,7 @@ def test_grid_points_are_every_combination_with_both_values_tagged():
 
 
 def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range():
-    from marinebench.experiments.grid import tuning
+    from marinebench.experiments.settings import tuning
 
     torben, _ = load_experiment(CFG)
     assert (tuning(torben, "k"), tuning(torben, "delta")) == (0.7, 2.5)

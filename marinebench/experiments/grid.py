@@ -23,13 +23,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.colors import LogNorm
-from matplotlib.ticker import LogFormatterSciNotation
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
-from marinebench.experiments.settings import setting_at, setting_path
+from marinebench.experiments.settings import tuning
 from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
-from marinebench.plotting.figures import save
+from marinebench.plotting.figures import plain_log_labels, save
 from marinebench.results.claims import NARROW_NOTE, Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import simulated_on
 
@@ -49,27 +48,6 @@ def grid_surfaces(metrics: pd.DataFrame, metric: str, signals: list[str] | None 
 
 def _axes(metrics: pd.DataFrame) -> tuple[str, str]:
     return str(metrics["param"].iloc[0]), str(metrics["param2"].iloc[0])
-
-
-def tuning(exp: Experiment, param: str, variant: str | None = None) -> float | None:
-    """The swept variant's (or ``variant``'s) own value of a sweep parameter (of a ``world.<key>``, or of the ROV
-    observers' settings: the variant's, else its scenario's), if it is a number inside the range; None when the
-    parameter has ``fixed`` settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
-    ps = exp.sweep.params[param]
-    if ps.fixed:
-        return None
-    base = next(v for v in exp.variants if v.name == (variant or exp.sweep.variant))
-    path = setting_path(ps.key)
-    scenario = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario
-    if path[0] == "world":
-        value = base.world.get(path[1], scenario.per_run_defaults().get(path[1]))
-    else:
-        value = setting_at(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
-    if value is None and path[0] == "observer" and len(path) == 3 and path[1] in ("cdo", "eo"):
-        value = getattr(base.observer.resolve(scenario)[path[1] == "eo"], path[2], None)  # the scenario's CDO/EO
-    if value is None and path[0] == "controller" and len(path) == 3 and path[1] in ("depth", "yaw"):
-        value = getattr(base.controller.gains()[("depth", "yaw").index(path[1])], path[2], None)  # Table II's default
-    return float(value) if isinstance(value, int | float) and ps.range[0] <= value <= ps.range[1] else None
 
 
 def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
@@ -118,13 +96,6 @@ def grid_table(metrics: pd.DataFrame, metric: str, spec: SweepSpec, model: str =
     return "\n".join([*lines, *summary, *notes, *blocks]) + "\n"
 
 
-class PlainLog(LogFormatterSciNotation):
-    """A log colour bar's ticks labelled where matplotlib labels them, but as plain numbers: 4, not 4×10⁰."""
-
-    def __call__(self, value, pos=None):
-        return f"{value:.3g}" if super().__call__(value, pos) else ""
-
-
 def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: Path) -> None:
     """One heat map per metric (rows; a row per variant too, when several were swept) and group and signal
     (columns): the seed-mean KPI over the grid on a log colour scale, its lowest point starred, the swept variant's
@@ -151,8 +122,7 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             mesh = ax.pcolormesh(_edges(m.columns.to_numpy(dtype=float), log[0]), _edges(m.index.to_numpy(dtype=float), log[1]),
                                  values, cmap="viridis", norm=norm)
             bar = fig.colorbar(mesh, ax=ax, label=metric)
-            bar.ax.yaxis.set_major_formatter(PlainLog())
-            bar.ax.yaxis.set_minor_formatter(PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+            plain_log_labels(bar.ax.yaxis)
             if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):  # a flat surface has no lowest point
                 i, j = np.unravel_index(np.nanargmin(values), values.shape)
                 ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
@@ -163,6 +133,7 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
             for axis, p in (("x", p2), ("y", p1)):
                 if exp.sweep.params[p].spacing == "log":
                     getattr(ax, f"set_{axis}scale")("log")
+                    plain_log_labels(getattr(ax, f"{axis}axis"))
                 getattr(ax, f"set_{axis}label")(exp.sweep.params[p].label or p)
             ax.set_title(f"{metric}: {g}" + (f", {sig}" if sig != "z" else ""), fontsize=9)
             ax.legend(fontsize=7, loc="best")

@@ -3,12 +3,15 @@
 A sweep parameter's ``key`` (``sweep.params.<name>.key`` in an experiment YAML) is an observer field (``k`` is
 ``observer.k``) or a dotted path under ``observer.``, ``controller.`` or ``world.`` (a per-run world key, e.g.
 ``world.gnss_sigma``). The sweep builds each point by writing the value at that path of the variant's settings
-(:func:`put_setting`), and the grid figure reads the variant's own tuning back (:func:`setting_at`).
+(:func:`put_setting`), and the figures and the grid's claims read the variant's own value back (:func:`tuning`).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from marinebench.config import Experiment
 
 MISSING: Any = object()
 """What :func:`setting_at` returns for a path that is not a setting of the variant."""
@@ -38,3 +41,24 @@ def put_setting(doc: dict, path: list[str], value: Any) -> None:
     for part in path[:-1]:
         doc = doc.setdefault(part, {})
     doc[path[-1]] = value
+
+
+def tuning(exp: Experiment, param: str, variant: str | None = None) -> float | None:
+    """The swept variant's (or ``variant``'s) own value of a sweep parameter (of a ``world.<key>``, or of the ROV
+    observers' settings: the variant's, else its scenario's), if it is a number inside the range; None when the
+    parameter has ``fixed`` settings (they change what its value means: Torben's ``c_ε`` scales a fixed ``ε``)."""
+    ps = exp.sweep.params[param]
+    if ps.fixed:
+        return None
+    base = next(v for v in exp.variants if v.name == (variant or exp.sweep.variant))
+    path = setting_path(ps.key)
+    scenario = (exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp).scenario
+    if path[0] == "world":
+        value = base.world.get(path[1], scenario.per_run_defaults().get(path[1]))
+    else:
+        value = setting_at(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
+    if value is None and path[0] == "observer" and len(path) == 3 and path[1] in ("cdo", "eo"):
+        value = getattr(base.observer.resolve(scenario)[path[1] == "eo"], path[2], None)  # the scenario's CDO/EO
+    if value is None and path[0] == "controller" and len(path) == 3 and path[1] in ("depth", "yaw"):
+        value = getattr(base.controller.gains()[("depth", "yaw").index(path[1])], path[2], None)  # Table II's default
+    return float(value) if isinstance(value, int | float) and ps.range[0] <= value <= ps.range[1] else None

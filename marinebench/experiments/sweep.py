@@ -28,10 +28,10 @@ from scipy.stats import spearmanr
 from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.config import Experiment, SweepSpec, Variant
 from marinebench.errors import ClusterError, ConfigError
-from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
+from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path, tuning
 from marinebench.keypaths import did_you_mean, near_misses
 from marinebench.metrics.stats import mean_ci
-from marinebench.plotting.figures import save
+from marinebench.plotting.figures import plain_log_labels, save
 from marinebench.results.claims import Check, ClaimResult, Region, bootstrap_ci
 from marinebench.results.stored import read_tidy
 from marinebench.results.tables import simulated_on
@@ -491,7 +491,7 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
     """Fig. 3 layout: one panel per parameter (and a column per metric of ``shown``, and per signal when several
     curves share each), the KPI against the value, one curve per curve of :func:`curves_of` (group or variant; and
     signal, when there are several and one curve each): the mean over seeds, with the seeds' range shaded when
-    there are several."""
+    there are several, and a dotted line at ``sweep.variant``'s own value (Table I's k = 0.7 and δ = 2.5 s)."""
     per_metric = {metric: _per_seed_curves(metrics, metric, exp.sweep.signals) for metric in shown}
     params = list(dict.fromkeys(p for curves in per_metric.values() for p, _, _ in curves))
     columns = []  # (metric, its curves in the panel, the signals they show)
@@ -516,16 +516,25 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
                 (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=label)
                 if c.shape[1] > 1:
                     ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
-            if exp.sweep.params[p].spacing == "log":
-                ax.set_xscale("log")
-            ax.set_xlabel(exp.sweep.params[p].label or p)
-            ax.set_ylabel(ylabel)
-            if n_groups * n_signals > 1:  # a lone curve needs no legend (its group is the default)
-                ax.legend(fontsize=8)
-            ax.grid(alpha=0.3)
+            _dress(ax, exp, p, ylabel, legend=n_groups * n_signals > 1)  # a lone curve needs no legend
     n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    save(fig, f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}; model {exp.model_label()})", path)
+    own = f"; dotted: {exp.sweep.variant}'s own value" if any(tuning(exp, p) is not None for p in params) else ""
+    save(fig, f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}{own}; model {exp.model_label()})", path)
+
+
+def _dress(ax, exp: Experiment, param: str, ylabel: str, legend: bool) -> None:
+    """A sweep panel's axes: the parameter's scale and label, a dotted line at the swept variant's own value."""
+    if (own := tuning(exp, param)) is not None:
+        ax.axvline(own, color="0.4", ls=":", lw=1)
+    if exp.sweep.params[param].spacing == "log":
+        ax.set_xscale("log")
+        plain_log_labels(ax.xaxis)
+    ax.set_xlabel(exp.sweep.params[param].label or param)
+    ax.set_ylabel(ylabel)
+    if legend:
+        ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
 
 
 def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[str, float]:

@@ -10,6 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.ticker import LogFormatterSciNotation
 
 from marinebench.config import Experiment, FigureSpec
 
@@ -32,6 +33,19 @@ def save(fig, title: str, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
+
+
+class PlainLog(LogFormatterSciNotation):
+    """A log colour bar's ticks labelled where matplotlib labels them, but as plain numbers: 4, not 4×10⁰."""
+
+    def __call__(self, value, pos=None):
+        return f"{value:.3g}" if super().__call__(value, pos) else ""
+
+
+def plain_log_labels(axis) -> None:
+    """Label a log ``axis`` (``ax.xaxis``, a colour bar's ``yaxis``) in plain numbers where matplotlib would label it."""
+    axis.set_major_formatter(PlainLog())
+    axis.set_minor_formatter(PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
 
 
 def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tuple[list[str], dict[str, str], list[int]]:

@@ -14,9 +14,9 @@ from marinebench.experiments.grid import (
     grid_figure,
     grid_manifest_entries,
     grid_table,
-    tuning,
 )
 from marinebench.experiments.runner import RunResult
+from marinebench.experiments.settings import tuning
 from marinebench.experiments.sweep import as_swept, sweep_claims, sweep_figure, sweep_table
 from marinebench.plotting.figures import timeseries, tracking
 from marinebench.provenance import inputs_key
