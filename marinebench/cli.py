@@ -212,10 +212,8 @@ def _distinct_targets(configs: list[Path], base: Path) -> list[Path]:
     folder ``base/<stem>/``: the second would silently replace the first's results."""
     firsts: dict[str, Path] = {}
     for c in configs:
-        first = firsts.get(output_stem(c))
-        if first is None:
-            firsts[output_stem(c)] = c
-        elif first.resolve() != c.resolve():
+        first = firsts.setdefault(output_stem(c), c)
+        if first is not c and first.resolve() != c.resolve():
             raise MarinebenchError(f"{c}: writes {_target(base, c)}, as {first} does; run them with different --out")
     return list(firsts.values())
 

@@ -36,7 +36,7 @@ def save(fig, title: str, path: Path) -> None:
 
 
 class PlainLog(LogFormatterSciNotation):
-    """A log colour bar's ticks labelled where matplotlib labels them, but as plain numbers: 4, not 4×10⁰."""
+    """A log axis's ticks labelled where matplotlib labels them, but as plain numbers: 4, not 4×10⁰."""
 
     def __call__(self, value, pos=None):
         return f"{value:.3g}" if super().__call__(value, pos) else ""
