@@ -475,6 +475,16 @@ def test_validate_all_committed_configs_and_scenarios():
     assert res.output.count(": ok") == len(files)
 
 
+def test_every_committed_results_resolved_config_validates():
+    """A result's config.resolved.yaml is a config in its own right (``run`` reruns it); two --variants sweeps'
+    were not: they kept parameters that are no setting of every variant swept."""
+    files = sorted(str(p) for p in (ROOT / "results").glob("*/config.resolved.yaml"))
+    assert len(files) >= 30
+    res = runner.invoke(app, ["validate", *files])
+    assert res.exit_code == 0, res.output
+    assert res.output.count(": ok") == len(files)
+
+
 def test_validate_takes_set_and_profile_as_run_does():
     config = str(ROOT / "configs" / "torben_fig1.yaml")
     assert runner.invoke(app, ["validate", config, "--profile", "quick", "--set", "seeds=2"]).exit_code == 0
