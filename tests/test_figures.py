@@ -205,13 +205,16 @@ def test_tracking_of_one_dof_is_one_column(tmp_path, drawn):
 
 
 def test_a_long_title_is_wrapped_to_the_figures_width_not_cut_off(tmp_path, drawn):
-    """Fig. 3's sweep figure is 7 in wide and its model label long: the title was cut off at both edges."""
-    fig, _ = figures.plt.subplots(figsize=(7, 3))
+    """Fig. 3's sweep figure is 7 in wide and its model label long: the title was cut off at both edges; and in a
+    tall figure (seven panels, as the ROV observers' sweep) tight_layout let the three-line title overlap the top
+    panel."""
+    fig, _ = figures.plt.subplots(7, 1, figsize=(7, 18.2))
     figures.save(fig, "torben_fig3: J_tot sensitivity\n(one parameter at a time, mean of 5 seeds (band: their range); "
                  "model supply_shipx_lf (observers: supply_dp_linear))", tmp_path / "f.png")
     title = fig._suptitle
     box = title.get_window_extent(fig.canvas.get_renderer())
     assert 0 <= box.x0 and box.x1 <= fig.bbox.width
+    assert max(ax.get_tightbbox(fig.canvas.get_renderer()).y1 for ax in fig.axes) <= box.y0
     assert title.get_text().startswith("torben_fig3: J_tot sensitivity\n") and title.get_text().count("\n") == 2
     assert (tmp_path / "f.png").stat().st_size > 0
 

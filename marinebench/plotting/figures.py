@@ -27,10 +27,14 @@ TITLE_SIZE, DPI = 10, 110
 def save(fig, title: str, path: Path) -> None:
     """Title ``fig``, lay it out, write it to ``path`` and close it. Each line of ``title`` is wrapped to the
     figure's width (at about 0.6 em a character), so a long model label such as ``supply_shipx_lf (observers:
-    supply_dp_linear)`` is not cut off at both edges of a one-column figure."""
+    supply_dp_linear)`` is not cut off at both edges of a one-column figure, and the panels are laid out below it."""
     chars = int(fig.get_figwidth() * 72 / (0.6 * TITLE_SIZE))
-    fig.suptitle("\n".join(textwrap.fill(line, chars) for line in title.split("\n")), fontsize=TITLE_SIZE)
+    text = fig.suptitle("\n".join(textwrap.fill(line, chars) for line in title.split("\n")), fontsize=TITLE_SIZE)
     fig.tight_layout()
+    renderer = fig.canvas.get_renderer()  # tight_layout alone let a tall figure's three-line title overlap its top panel
+    overlap = max(ax.get_tightbbox(renderer).y1 for ax in fig.axes) - text.get_window_extent(renderer).y0
+    if overlap > 0:
+        fig.subplots_adjust(top=fig.subplotpars.top - (overlap + 6) / fig.bbox.height)
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
@@ -45,7 +49,7 @@ class PlainLog(LogFormatterSciNotation):
 def plain_log_labels(axis) -> None:
     """Label a log ``axis`` (``ax.xaxis``, a colour bar's ``yaxis``) in plain numbers where matplotlib would label it."""
     axis.set_major_formatter(PlainLog())
-    axis.set_minor_formatter(PlainLog(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+    axis.set_minor_formatter(PlainLog(labelOnlyBase=False))
 
 
 def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tuple[list[str], dict[str, str], list[int]]:
