@@ -242,3 +242,11 @@ def test_a_sweep_panel_marks_the_variants_own_value_and_labels_a_log_axis_in_pla
     fig.canvas.draw()
     labels = {t.get_text() for t in delta_ax.get_xticklabels(which="both") if t.get_text()}
     assert {"1", "10"} <= labels and not any("10^" in s or "times" in s for s in labels), labels
+
+
+def test_a_figure_with_a_hidden_panel_is_saved(tmp_path, drawn):
+    """A hidden panel has no extent (get_tightbbox is None); the layout below the title must not fail on it."""
+    fig, axes = figures.plt.subplots(1, 2, figsize=(7, 3))
+    axes[1].set_visible(False)
+    figures.save(fig, "a title", tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 0

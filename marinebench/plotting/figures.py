@@ -32,7 +32,8 @@ def save(fig, title: str, path: Path) -> None:
     text = fig.suptitle("\n".join(textwrap.fill(line, chars) for line in title.split("\n")), fontsize=TITLE_SIZE)
     fig.tight_layout()
     renderer = fig.canvas.get_renderer()  # tight_layout alone let a tall figure's three-line title overlap its top panel
-    overlap = max(ax.get_tightbbox(renderer).y1 for ax in fig.axes) - text.get_window_extent(renderer).y0
+    boxes = [box for ax in fig.axes if (box := ax.get_tightbbox(renderer)) is not None]  # None: a hidden panel
+    overlap = max((box.y1 for box in boxes), default=0.0) - text.get_window_extent(renderer).y0
     if overlap > 0:
         fig.subplots_adjust(top=fig.subplotpars.top - (overlap + 6) / fig.bbox.height)
     fig.savefig(path, dpi=DPI)
