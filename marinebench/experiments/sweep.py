@@ -501,6 +501,7 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
             columns += [(metric, {k: c for k, c in curves.items() if k[2] == sig}, [sig]) for sig in signals]
         else:
             columns.append((metric, curves, signals))
+    own = {p: tuning(exp, p) for p in params}  # the swept variant's own value of each, or None
     rows, cols = max(1, len(params)), len(columns)
     fig, axes = plt.subplots(rows, cols, figsize=(7 if cols == 1 else 5 * cols, 2.6 * rows), squeeze=False)
     for col, (metric, curves, signals) in enumerate(columns):
@@ -516,16 +517,17 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
                 (line,) = ax.plot(x, c.mean(axis=1), ".-", ms=3, lw=1, label=label)
                 if c.shape[1] > 1:
                     ax.fill_between(x, c.min(axis=1), c.max(axis=1), color=line.get_color(), alpha=0.2, lw=0)
-            _dress(ax, exp, p, ylabel, legend=n_groups * n_signals > 1)  # a lone curve needs no legend
+            _dress(ax, exp, p, ylabel, own[p], legend=n_groups * n_signals > 1)  # a lone curve needs no legend
     n_seeds = max((c.shape[1] for curves in per_metric.values() for c in curves.values()), default=1)
     seeds = f", mean of {n_seeds} seeds (band: their range)" if n_seeds > 1 else ""
-    own = f"; dotted: {exp.sweep.variant}'s own value" if any(tuning(exp, p) is not None for p in params) else ""
-    save(fig, f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}{own}; model {exp.model_label()})", path)
+    dotted = f"; dotted: {exp.sweep.variant}'s own value" if any(v is not None for v in own.values()) else ""
+    save(fig, f"{exp.name}: {', '.join(shown)} sensitivity\n(one parameter at a time{seeds}{dotted}; model {exp.model_label()})",
+         path)
 
 
-def _dress(ax, exp: Experiment, param: str, ylabel: str, legend: bool) -> None:
-    """A sweep panel's axes: the parameter's scale and label, a dotted line at the swept variant's own value."""
-    if (own := tuning(exp, param)) is not None:
+def _dress(ax, exp: Experiment, param: str, ylabel: str, own: float | None, legend: bool) -> None:
+    """A sweep panel's axes: the parameter's scale and label, a dotted line at the swept variant's ``own`` value."""
+    if own is not None:
         ax.axvline(own, color="0.4", ls=":", lw=1)
     if exp.sweep.params[param].spacing == "log":
         ax.set_xscale("log")

@@ -33,6 +33,7 @@ from scipy.stats import t as student_t
 
 from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
+from marinebench.metrics.stats import mean_ci
 from marinebench.results.stored import read_manifest, read_metrics, read_resolved
 
 Interval = Literal["bootstrap", "t"]  # the CI of a paired comparison (compare --interval)
@@ -173,12 +174,7 @@ def paired_t_ci(diff: np.ndarray, level: float = 0.95) -> tuple[float, float]:
     """Student's t interval of the mean of paired differences, ``mean ± t(n − 1) · s / sqrt(n)``: for differences
     that are noise (two variants over the same seeds), it holds its level at any number of seeds, where the
     percentile bootstrap excludes zero in 16 % of such cases at 5 seeds (nominal 5 %; docs/commands.md)."""
-    diff = np.asarray(diff, dtype=float)
-    if diff.size < 2:
-        return float("nan"), float("nan")
-    m = float(diff.mean())
-    half = float(student_t.ppf(0.5 + level / 2, diff.size - 1) * diff.std(ddof=1) / np.sqrt(diff.size))
-    return m - half, m + half
+    return mean_ci(diff, level)[1:]
 
 
 def welch_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95) -> tuple[float, float]:
