@@ -373,37 +373,16 @@ def sweep(
     an interrupted sweep resumes from the finished batches. With --dask the batches run on Dask workers
     instead. Where a run is simulated does not change its numbers."""
     import time as _time
-    from contextlib import nullcontext
 
-    from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
-    from marinebench.experiments.sweep import (
-        GRID_N,
-        chunks_of,
-        discard_partial,
-        finished_chunks,
-        partial_dir,
-        run_chunked,
-        sweep_experiment,
-        sweep_suffix,
-    )
+    from marinebench.experiments.sweep import GRID_N, discard_partial, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
-    from marinebench.results.writer import output_folder
 
     _check_sweep_options(chunk_size, jobs, dask, n, horizon, grid, require_claims)
     _sweep_config(config)
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
-    with one_line_errors():
-        base, _ = _load(config, set_ or [], seed, seeds, sweep_params=False,  # the parameters are checked below
-                        variants=None if variants == "all" else variants)
-        if variants == "all":  # every variant that runs on the sweep's scenario
-            names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
-            base = base.model_copy(update={"sweep": base.sweep.model_copy(update={"variants": names})})
-        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
-        from marinebench.loading import preflight
-
-        preflight(exp, config)
+    base, exp = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid, overrides)
     target = (out_dir if out_dir is not None else Path("results")) / (
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
@@ -411,6 +390,57 @@ def sweep(
         _claims_verdict(require_claims, known)
         return
     t0 = _time.perf_counter()
+    metrics, summed, ran, wall, executor = _simulate_sweep(exp, target, chunk_size, dask, workers, jobs, quiet)
+    try:
+        claims, mapped = write_sweep(
+            target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
+            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept,
+            chunk_size=chunk_size, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
+            batch_time_s=round(summed, 3),
+        )
+    except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
+        fail(f"{target}: cannot write results ({exc.strerror or exc})")
+    discard_partial(target)
+    if not quiet:
+        checked = (f", {summary_line(claims)}" if claims else
+                   f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")
+        out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
+                  f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
+                  f"-> {target}", markup=False)
+    _claims_verdict(require_claims, sum(c.fails for c in claims))
+
+
+def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: int | None, seeds: int | None,
+                      variants: str | None, groups: list[str] | None, n: int | None, horizon: float | None, grid: bool,
+                      overrides: list[str]):
+    """sweep: the loaded experiment (its variants those of ``--variants``, or every one on the sweep's world for
+    'all') and the experiment whose variants are the sweep's points, its designs solved (preflight)."""
+    from marinebench.experiments.sweep import sweep_experiment
+    from marinebench.loading import preflight
+
+    with one_line_errors():
+        base, _ = _load(config, sets, seed, seeds, sweep_params=False,  # the parameters are checked below
+                        variants=None if variants == "all" else variants)
+        if variants == "all":  # every variant that runs on the sweep's scenario
+            names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
+            base = base.model_copy(update={"sweep": base.sweep.model_copy(update={"variants": names})})
+        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
+        preflight(exp, config)
+    return base, exp
+
+
+def _simulate_sweep(exp, target: Path, chunk_size: int, dask: str | None, workers: int | None, jobs: int,
+                    quiet: bool) -> tuple:
+    """sweep: simulate the points in batches of ``chunk_size`` (in this process, local worker processes or on
+    Dask) under a progress bar; returns (metrics, batch seconds summed, batches run, wall seconds, executor). An
+    interruption exits, keeping the finished batches for the same command to resume from."""
+    import time as _time
+    from contextlib import nullcontext
+
+    from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
+    from marinebench.experiments.sweep import chunks_of, finished_chunks, partial_dir, run_chunked
+    from marinebench.results.writer import output_folder
+
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
@@ -429,23 +459,7 @@ def sweep(
     except KeyboardInterrupt as exc:
         _interrupted(f"{finished_chunks(target)} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
                      "the same command resumes from them", exc)
-    try:
-        claims, mapped = write_sweep(
-            target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
-            n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept,
-            chunk_size=chunk_size, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
-            batch_time_s=round(summed, 3),
-        )
-    except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
-        fail(f"{target}: cannot write results ({exc.strerror or exc})")
-    discard_partial(target)
-    if not quiet:
-        checked = (f", {summary_line(claims)}" if claims else
-                   f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")
-        out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
-                  f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
-                  f"-> {target}", markup=False)
-    _claims_verdict(require_claims, sum(c.fails for c in claims))
+    return metrics, summed, ran, wall, executor
 
 
 #: Points per swept parameter at most (a grid has the square): more is a typo, not a study.
