@@ -455,7 +455,7 @@ class Experiment(BaseModel):
         for name in self.scenarios:
             part = self.part(name)
             if not part.variants:
-                raise ValueError(f"no variant runs on scenario '{name}'")
+                raise ValueError(f"variants: none runs on scenario '{name}'")
             part._check_single()
         return self
 
@@ -534,16 +534,17 @@ class Experiment(BaseModel):
     def _check_table(self, names: list[str], kinds: list[str]) -> None:
         """The table's metrics are the experiment's (or observer diagnostics); its ``relative`` pair and the
         paper's values name variants (or the relative row, ``<a>_vs_<b>``)."""
-        for name in self.table.shown:
+        for i, name in enumerate(self.table.shown):
             if name not in kinds and name not in DIAGNOSTICS:
-                raise ValueError(f"table metric '{name}' is not among metrics {kinds}")
+                key = f"table.metrics.{i}" if self.table.metrics else "table.metric"
+                raise ValueError(f"{key}: '{name}' is not among the metrics {kinds}")
         rel = self.table.relative
         if rel is not None and not set(rel) <= set(names):
             raise ValueError(f"table.relative: unknown variants {sorted(set(rel) - set(names))}")
         if self.table.paper is not None:
             unknown = set(self.table.paper.values) - set(names) - ({f"{rel[0]}_vs_{rel[1]}"} if rel else set())
             if unknown:
-                raise ValueError(f"table.paper.values names unknown variants {sorted(unknown)}")
+                raise ValueError(f"table.paper.values: unknown variants {sorted(unknown)} (have: {', '.join(names)})")
 
     def _check_single(self) -> Experiment:
         """A single-scenario experiment (or one scenario's part of a study): unique names, metrics that apply to
@@ -551,7 +552,7 @@ class Experiment(BaseModel):
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
-            raise ValueError(f"duplicate variant names: {sorted(dup)}")
+            raise ValueError(f"variants: duplicate names {sorted(dup)}")
         kinds = self._check_metrics()
         if self.table is not None:
             self._check_table(names, kinds)
@@ -560,7 +561,7 @@ class Experiment(BaseModel):
         for f in self.figures:
             unknown = set(f.variants or []) - set(names)
             if unknown:
-                raise ValueError(f"figure {f.file} names unknown variants {sorted(unknown)}")
+                raise ValueError(f"figures: {f.file} names unknown variants {sorted(unknown)} (have: {', '.join(names)})")
         return self
 
     def _check_metrics(self) -> list[str]:
@@ -568,17 +569,18 @@ class Experiment(BaseModel):
         names."""
         kinds = [m.label for m in self.metrics]
         if len(set(kinds)) != len(kinds):
-            raise ValueError(f"metric names must be unique: {kinds}")
+            raise ValueError(f"metrics: names must be unique, got {kinds} (give each repeated kind its own name)")
         for m in self.metrics:
             if m.kind in ("int", "recovery") and self.scenario.kind != "rov_tracking":
-                raise ValueError(f"metric '{m.label}' ({m.kind}) applies to rov_tracking scenarios only")
+                named = f"'{m.label}' ({m.kind})" if m.label != m.kind else f"'{m.kind}'"
+                raise ValueError(f"metrics: {named} applies to rov_tracking scenarios only")
         self.check_windows(self.scenario.horizon)
         return kinds
 
     def _check_sweep(self, names: list[str], kinds: list[str]) -> None:
         """The sweep's variant is one of the experiment's, and the metrics it shows are among its metrics."""
         if self.sweep.variant not in names:
-            raise ValueError(f"sweep.variant '{self.sweep.variant}' is not a variant")
+            raise ValueError(f"sweep.variant: '{self.sweep.variant}' is not a variant (have: {', '.join(names)})")
         unknown = [v for v in self.sweep.variants or [] if v not in names]
         if unknown:
             raise ValueError(f"sweep.variants: unknown variants {unknown} (have: {', '.join(names)})")

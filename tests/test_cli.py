@@ -159,6 +159,23 @@ BAD = {
     "signal_without_truth": (lambda d: (d["variants"][0].update(observer={"kind": "npo"}),
                                         d["metrics"][0].update(signals=["u", "b_x"])),
                              "metrics.0.signals: ['b_x']: an open_loop_asv world has no truth of these"),
+    # checks across keys name the key they are about and what is there instead
+    "duplicate_variant_names": (lambda d: d["variants"][1].update(name="liu_eps0.2"),
+                                "variants: duplicate names ['liu_eps0.2']"),
+    "duplicate_metric_names": (lambda d: d["metrics"].append({"kind": "std"}),
+                               "metrics: names must be unique, got ['std', 'std'] (give each repeated kind its own name)"),
+    "closed_loop_metric": (lambda d: d["metrics"].append({"kind": "int", "signals": ["depth"]}),
+                           "metrics: 'int' applies to rov_tracking scenarios only"),
+    "table_metric": (lambda d: d["table"].update(metric="rmse"), "table.metric: 'rmse' is not among the metrics ['std']"),
+    "table_metrics": (lambda d: d["table"].update(metrics=["std", "rmse"]),
+                      "table.metrics.1: 'rmse' is not among the metrics ['std']"),
+    "paper_variant": (lambda d: d["table"]["paper"]["values"].update(nobody={"u": 1.0}),
+                      "table.paper.values: unknown variants ['nobody'] (have: liu_eps0.2, proposed_d1.2)"),
+    "figure_variant": (lambda d: d["figures"][0].update(variants=["nope"]),
+                       "figures: u.png names unknown variants ['nope'] (have: liu_eps0.2, proposed_d1.2)"),
+    "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
+                                                "params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}}),
+                      "sweep.variant: 'nope' is not a variant (have: liu_eps0.2, proposed_d1.2)"),
 }
 
 
