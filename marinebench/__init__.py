@@ -7,6 +7,7 @@ The command line (``marinebench run/sweep/compare ...``) is the main interface. 
 
     exp = mb.load("configs/torben_fig1.yaml", sets=["seeds=2"])  # validated; observer designs solved
     result = mb.run(exp)  # result.metrics: the tidy metrics.csv as a DataFrame; .summary: mean and CI
+    result.trace_frame()  # the figures' data: truth and estimate of seed 0 of each variant over time, tidy
     mb.write(result, "results/torben_fig1_2seeds", config="configs/torben_fig1.yaml")  # the run's files
 
 Bad input raises :class:`marinebench.errors.ConfigError`, whose message names the file and key.

@@ -105,9 +105,10 @@ def _sweep_config(config: Path) -> None:
 
 
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None,
-          sweep_params: bool = True, variants: str | None = None):
+          sweep_params: bool = True, variants: str | None = None, traces: bool = False):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key (``sweep_params``:
-    see :func:`~marinebench.loading.load_checked`; ``variants``: ``sweep --variants``, comma-separated)."""
+    see :func:`~marinebench.loading.load_checked`; ``variants``: ``sweep --variants``, comma-separated; ``traces``:
+    ``run --traces``)."""
     from marinebench.loading import load_checked
 
     if variants is not None:
@@ -115,7 +116,8 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
         if not all(names):
             raise ConfigError("--variants", "", f"comma-separated variant names, e.g. rise,srise, or 'all' (got '{variants}')")
         variants = json.dumps(names)  # quoted: a variant may be named "1e3"
-    options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds), "sweep.variants": ("--variants", variants)}
+    options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds), "sweep.variants": ("--variants", variants),
+               "engine.write_traces": ("--traces", "true" if traces else None)}
     sets = list(sets) + [f"{key}={value}" for key, (_, value) in options.items() if value is not None]
     try:
         return load_checked(config, sets, profile, sweep_params)
@@ -178,6 +180,9 @@ def run(
     resume: Annotated[bool, typer.Option("--resume", help="skip an experiment whose results were written from the same inputs "
                                          "(manifest's inputs_key: resolved config, seeds, marinebench source, package "
                                          "versions, custom classes' files), e.g. after an interruption")] = False,
+    traces: Annotated[bool, typer.Option("--traces", help="also write traces.csv.gz, the data of the figures: truth and estimate "
+                                         "of seed 0 of each variant every engine.trace_dt, one row per scenario, variant, "
+                                         "seed, t and signal (engine.write_traces)")] = False,
 ) -> None:
     """Run experiments; each writes config.resolved.yaml, manifest.json, metrics.csv, table.md, claims.md, figures/."""
     from marinebench.experiments.cluster import available_cores
@@ -186,7 +191,7 @@ def run(
     base = out_dir if out_dir is not None else Path("results")
     with one_line_errors():
         configs = _distinct_targets(configs, base)
-        loaded = [(c, *_load(c, set_ or [], seed, seeds, profile)) for c in configs]  # validate everything first
+        loaded = [(c, *_load(c, set_ or [], seed, seeds, profile, traces=traces)) for c in configs]  # validate everything first
     failing = 0
     try:
         with one_line_errors(), output_folder(base):

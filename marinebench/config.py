@@ -336,6 +336,11 @@ class EngineOptions(BaseModel):
     )
     check_step: bool = Field(True, description="refuse a dt too large for the observer poles (off: at your own risk)")
     trace_dt: float = Field(0.02, gt=0, description="sampling interval of the traces kept for figures [s]")
+    write_traces: bool = Field(
+        False, description="also write traces.csv.gz: the traces the figures draw (seed 0 of each variant, every trace_dt), "
+        "one row per scenario, variant, seed, t and signal with the truth and the estimate (run --traces; a sweep keeps "
+        "no traces and writes none)",
+    )
 
 
 class Experiment(BaseModel):

@@ -424,7 +424,7 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     assert res.exit_code == 2 and res.output.startswith("error: --set: variants.0.observer.k"), res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "engine.nosuch.deeper=1"])  # a new key, and its parent
     assert res.exit_code == 2 and res.output.strip() == ("error: --set: engine.nosuch: unknown key "
-                                                        "(allowed here: check_step, stiffness_limit, trace_dt)")
+                                                        "(allowed here: check_step, stiffness_limit, trace_dt, write_traces)")
     # a setting that makes a mapping where a list belongs: the error is at the list, and the --set made it
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "claims.0.text=x"])  # tiny has no claims
     assert res.exit_code == 2 and res.output.startswith("error: --set: claims: Input should be a valid list"), res.output

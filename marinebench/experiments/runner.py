@@ -128,6 +128,13 @@ class RunResult:
     parts: dict[str, RunResult] = field(default_factory=dict)  # per scenario, for multi-scenario experiments
     traced: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # the R traced runs: seed 0 of each variant
 
+    def trace_frame(self) -> pd.DataFrame:
+        """The traces the figures draw as a tidy DataFrame: scenario, variant, seed, t, signal, truth, estimate
+        (:func:`marinebench.results.traces.trace_frame`)."""
+        from marinebench.results.traces import trace_frame
+
+        return trace_frame(self)
+
 
 def build_groups(exp: Experiment, run_variant: np.ndarray, plant) -> list[ObserverGroup]:
     """One batched observer per observer kind (per class for custom observers), with one tuning per run."""

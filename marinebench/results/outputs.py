@@ -24,6 +24,8 @@ from marinebench.results.claims import ClaimResult, manifest_entries
 from marinebench.results.claims import evaluate as evaluate_claims
 from marinebench.results.claims import markdown as claims_markdown
 from marinebench.results.tables import markdown_table
+from marinebench.results.traces import FILE as TRACES_FILE
+from marinebench.results.traces import write_traces
 from marinebench.results.writer import atomic_directory, manifest
 
 _RK4 = "plant and observers integrated jointly by fixed-step RK4; dt refused unless dt*|lambda|max <= stiffness_limit"
@@ -72,7 +74,7 @@ def model_assumptions(worlds: dict, variants=()) -> list[str]:
 
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims: list[ClaimResult] | None = None) -> Path:
     """Write one experiment's result directory atomically (``claims``: its checked claims, if already
-    evaluated; a config with ``claims:`` also gets ``claims.md``)."""
+    evaluated; a config with ``claims:`` also gets ``claims.md``, one with ``engine.write_traces`` ``traces.csv.gz``)."""
     exp = result.experiment
     if claims is None:
         claims = evaluate_claims(exp, result.metrics)
@@ -82,6 +84,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
         (tmp / "table.md").write_text(markdown_table(exp, result.summary))
         if claims:
             (tmp / "claims.md").write_text(claims_markdown(exp, claims))
+        if exp.engine.write_traces:
+            write_traces(result, tmp / TRACES_FILE)
         figdir = tmp / "figures"
         figdir.mkdir()
         for part in result.parts.values() or [result]:

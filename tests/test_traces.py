@@ -1,0 +1,74 @@
+"""The figures' data as a table: ``RunResult.trace_frame()`` and ``run --traces`` (``traces.csv.gz``)."""
+
+import hashlib
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import marinebench as mb
+from marinebench.cli import app
+from marinebench.results.traces import COLUMNS, FILE, read_traces
+
+from .conftest import ROOT
+
+
+def test_the_frame_holds_every_traced_value_of_seed_0_of_each_variant(tiny_config):
+    result = mb.run(mb.load(tiny_config))
+    frame = result.trace_frame()
+    t, truth, est = result.traces
+    assert list(frame.columns) == COLUMNS
+    assert set(frame["seed"]) == {0} and list(frame["variant"].unique()) == ["liu_eps0.2", "proposed_d1.2"]
+    assert len(frame) == len(t) * len(result.traced) * len(truth)
+    for col, run in enumerate(result.traced):
+        variant = result.experiment.variants[result.run_variant[run]].name
+        for signal in truth:
+            rows = frame[(frame["variant"] == variant) & (frame["signal"] == signal)]
+            np.testing.assert_array_equal(rows["t"], t)
+            np.testing.assert_array_equal(rows["truth"], truth[signal][:, col])
+            if signal in est:
+                np.testing.assert_array_equal(rows["estimate"], est[signal][:, col])
+            else:
+                assert rows["estimate"].isna().all(), signal
+    assert {"u", "sigma_u"} <= set(frame["signal"])
+
+
+def test_a_result_without_traces_says_so(tiny_config):
+    result = mb.run(mb.load(tiny_config), traces=False)
+    with pytest.raises(ValueError, match="kept no traces"):
+        result.trace_frame()
+
+
+def test_run_traces_writes_the_frame_gzipped_the_same_bytes_every_time(tiny_config, tmp_path):
+    digests = []
+    for out in ("a", "b"):
+        res = CliRunner().invoke(app, ["run", str(tiny_config), "--traces", "--quiet", "--out", str(tmp_path / out)])
+        assert res.exit_code == 0, res.output
+        digests.append(hashlib.sha256((tmp_path / out / "tiny" / FILE).read_bytes()).hexdigest())
+    assert digests[0] == digests[1]  # no time stamp or temporary file name in the gzip header
+    written = read_traces(tmp_path / "a" / "tiny" / FILE)
+    expected = mb.run(mb.load(tiny_config)).trace_frame()
+    assert list(written.columns) == COLUMNS and len(written) == len(expected)
+    assert (written[["scenario", "variant", "signal"]].to_numpy() == expected[["scenario", "variant", "signal"]].to_numpy()).all()
+    np.testing.assert_allclose(written[["t", "truth"]], expected[["t", "truth"]], rtol=1e-9, atol=1e-300)
+    assert "engine:" in (tmp_path / "a" / "tiny" / "config.resolved.yaml").read_text()
+    assert "write_traces: true" in (tmp_path / "a" / "tiny" / "config.resolved.yaml").read_text()
+
+
+def test_without_the_option_no_traces_are_written_and_resume_reruns_for_them(tiny_config, tmp_path):
+    args = ["run", str(tiny_config), "--quiet", "--out", str(tmp_path)]
+    assert CliRunner().invoke(app, args).exit_code == 0
+    assert not (tmp_path / "tiny" / FILE).exists()
+    res = CliRunner().invoke(app, [*args[:-3], "--out", str(tmp_path), "--resume", "--traces"])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "tiny" / FILE).exists()  # the traces are an input of the results: not "up to date"
+
+
+def test_a_multi_scenario_experiment_names_each_world(tmp_path):
+    config = ROOT / "configs" / "tijjani_table3.yaml"
+    exp = mb.load(config, sets=["seeds=1", "scenarios.*.horizon=2"])
+    frame = mb.run(exp).trace_frame()
+    assert list(frame["scenario"].unique()) == list(exp.scenarios)
+    assert frame.groupby("scenario")["t"].max().max() == pytest.approx(2.0, abs=0.05)
+    # a controller's commands have a truth and no estimate
+    assert frame.loc[frame["signal"] == "tau_depth", "estimate"].isna().all()
