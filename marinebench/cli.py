@@ -133,7 +133,7 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
     None) and the number of its claims that fail. Errors are re-raised as one line naming the file."""
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.results.claims import evaluate, summary_line
-    from marinebench.results.outputs import write_run
+    from marinebench.results.outputs import as_written, write_run
 
     try:
         result = run_experiment(exp, progress=progress, on_start=on_start)
@@ -141,7 +141,7 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
         raise MarinebenchError(f"{path}: scenario.dt: {exc}") from None
     except MarinebenchError as exc:
         raise MarinebenchError(f"{path}: {exc}") from None
-    claims = evaluate(exp, result.metrics)
+    claims = evaluate(exp, as_written(result.metrics))  # the metrics as metrics.csv holds them, as write_run checks them
     try:
         write_run(result, target, origins, claims)
     except OSError as exc:  # e.g. the disk filled up: the previous results stay, nothing half-written

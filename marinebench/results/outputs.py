@@ -15,7 +15,7 @@ from marinebench.experiments.grid import (
     grid_manifest_entries,
     grid_table,
 )
-from marinebench.experiments.runner import RunResult
+from marinebench.experiments.runner import RunResult, summarise
 from marinebench.experiments.settings import tuning
 from marinebench.experiments.sweep import as_swept, sweep_claims, sweep_figure, sweep_table
 from marinebench.plotting.figures import timeseries, tracking
@@ -49,6 +49,20 @@ STANDARD_ASSUMPTIONS = {
 }
 
 
+#: How ``metrics.csv`` writes a float: 7 significant digits.
+METRICS_FLOAT = "%.6e"
+
+
+def as_written(metrics: pd.DataFrame) -> pd.DataFrame:
+    """The metrics as ``metrics.csv`` holds them, every float to :data:`METRICS_FLOAT`. Tables and claims are made
+    from these, so that they are what anyone makes of the file: from the unrounded values a mean can round the
+    other way in its fourth digit (18.59 against 18.6 in one cell of the k x c_eps grid)."""
+    out = metrics.copy()
+    for col in out.select_dtypes("float").columns:
+        out[col] = [float(METRICS_FLOAT % x) for x in out[col]]
+    return out
+
+
 def _steps(worlds: dict) -> dict:
     """dt, horizon and steps of the world (or of each named world)."""
     info = {name: {"dt": sc.dt, "horizon": sc.horizon, "steps": round(sc.horizon / sc.dt)} for name, sc in worlds.items()}
@@ -73,15 +87,17 @@ def model_assumptions(worlds: dict, variants=()) -> list[str]:
 
 
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims: list[ClaimResult] | None = None) -> Path:
-    """Write one experiment's result directory atomically (``claims``: its checked claims, if already
-    evaluated; a config with ``claims:`` also gets ``claims.md``, one with ``engine.write_traces`` ``traces.csv.gz``)."""
+    """Write one experiment's result directory atomically (``claims``: its checked claims, if already evaluated on
+    the metrics :func:`as_written`; a config with ``claims:`` also gets ``claims.md``, one with
+    ``engine.write_traces`` ``traces.csv.gz``). ``table.md`` and ``claims.md`` are made from ``metrics.csv``'s values."""
     exp = result.experiment
+    metrics = as_written(result.metrics)
     if claims is None:
-        claims = evaluate_claims(exp, result.metrics)
+        claims = evaluate_claims(exp, metrics)
     with atomic_directory(out_dir) as tmp:
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(exp))
-        result.metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
-        (tmp / "table.md").write_text(markdown_table(exp, result.summary))
+        metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
+        (tmp / "table.md").write_text(markdown_table(exp, summarise(metrics)))
         if claims:
             (tmp / "claims.md").write_text(claims_markdown(exp, claims))
         if exp.engine.write_traces:
@@ -127,11 +143,12 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
     the command started, ``run_info`` what the manifest records of how the sweep ran (overrides, points, groups,
     batches, executor, times). Returns the checked claims and the claims mapped over a grid."""
     shown = base.sweep.shown
+    metrics = as_written(metrics)
     claims = [] if grid else sweep_claims(metrics, base.sweep)
     mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
     table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
     with atomic_directory(target) as tmp:
-        metrics.to_csv(tmp / "metrics.csv", index=False, float_format="%.6e")
+        metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)))
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
                                                 for metric in shown))
