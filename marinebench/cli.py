@@ -105,10 +105,12 @@ def _sweep_config(config: Path) -> None:
 
 
 def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, profile: str | None = None,
-          sweep_params: bool = True, variants: str | None = None, traces: bool = False):
+          sweep_params: bool = True, variants: str | None = None, traces: bool = False,
+          inline: dict[str, tuple[str, str]] | None = None):
     """Load, validate and design (LMIs) one experiment; raises ConfigError naming file and key (``sweep_params``:
     see :func:`~marinebench.loading.load_checked`; ``variants``: ``sweep --variants``, comma-separated; ``traces``:
-    ``run --traces``)."""
+    ``run --traces``; ``inline``: the sweep parameters given in place, ``{key: (argument, value)}``,
+    :func:`~marinebench.experiments.sweep.inline_params`). An error in what an option set names the option."""
     from marinebench.loading import load_checked
 
     if variants is not None:
@@ -117,7 +119,7 @@ def _load(config: Path, sets: list[str], seed: int | None, seeds: int | None, pr
             raise ConfigError("--variants", "", f"comma-separated variant names, e.g. rise,srise, or 'all' (got '{variants}')")
         variants = json.dumps(names)  # quoted: a variant may be named "1e3"
     options = {"seed": ("--seed", seed), "seeds": ("--seeds", seeds), "sweep.variants": ("--variants", variants),
-               "engine.write_traces": ("--traces", "true" if traces else None)}
+               "engine.write_traces": ("--traces", "true" if traces else None), **(inline or {})}
     sets = list(sets) + [f"{key}={value}" for key, (_, value) in options.items() if value is not None]
     try:
         return load_checked(config, sets, profile, sweep_params)
@@ -339,7 +341,9 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
 
 @app.command()
 def sweep(
-    params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time (from the config's sweep.params)")],
+    params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time: names of the config's "
+                                                "sweep.params, or KEY=LO..HI[:log] given in place (delta_p1=0.5..3, "
+                                                "world.gnss_sigma=0.05..3:log)")],
     config: SweepConfig = DEFAULT_SWEEP,
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option("--gnss", "--groups", metavar="GROUPS", help="comma-separated world groups of "
@@ -379,7 +383,7 @@ def sweep(
     instead. Where a run is simulated does not change its numbers."""
     import time as _time
 
-    from marinebench.experiments.sweep import GRID_N, discard_partial, sweep_suffix
+    from marinebench.experiments.sweep import GRID_N, discard_partial, inline_params, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
 
@@ -387,7 +391,11 @@ def sweep(
     _sweep_config(config)
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
-    base, exp = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid, overrides)
+    with one_line_errors():
+        params, inline = inline_params(params)
+    overrides = [arg for arg, _ in inline.values()] + overrides  # a parameter given in place names the folder, as --set does
+    base, exp = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid, overrides,
+                                  inline)
     target = (out_dir if out_dir is not None else Path("results")) / (
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
@@ -417,7 +425,7 @@ def sweep(
 
 def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: int | None, seeds: int | None,
                       variants: str | None, groups: list[str] | None, n: int | None, horizon: float | None, grid: bool,
-                      overrides: list[str]):
+                      overrides: list[str], inline: dict[str, tuple[str, str]]):
     """sweep: the loaded experiment (its variants those of ``--variants``, or every one on the sweep's world for
     'all') and the experiment whose variants are the sweep's points, its designs solved (preflight)."""
     from marinebench.experiments.sweep import sweep_experiment
@@ -425,12 +433,18 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
 
     with one_line_errors():
         base, _ = _load(config, sets, seed, seeds, sweep_params=False,  # the parameters are checked below
-                        variants=None if variants == "all" else variants)
+                        variants=None if variants == "all" else variants, inline=inline)
         if variants == "all":  # every variant that runs on the sweep's scenario
             names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
             base = base.model_copy(update={"sweep": base.sweep.model_copy(update={"variants": names})})
-        exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
-        preflight(exp, config)
+        try:
+            exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
+            preflight(exp, config)
+        except ConfigError as exc:  # about a parameter given in place: name the argument, not the config
+            given = next((arg for key, (arg, _) in inline.items() if exc.key == key or exc.key.startswith(f"{key}.")), None)
+            if given is None:
+                raise
+            raise ConfigError(given, "", exc.message) from None
     return base, exp
 
 

@@ -280,7 +280,8 @@ class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
     model_config = STRICT
-    variant: str = Field(..., description="the variant whose settings are swept (and whose curves sweep.claims are about)")
+    variant: str | None = Field(None, description="the variant whose settings are swept (and whose curves sweep.claims are "
+                                "about); default: the first of variants, else the experiment's first (on sweep.scenario)")
     variants: list[str] | None = Field(
         None, min_length=1, description="several variants swept side by side, one curve each (default: variant alone; "
         "`sweep --variants`): every parameter's key must be a setting of each, e.g. a world.<key>",
@@ -291,7 +292,7 @@ class SweepSpec(BaseModel):
     groups: dict[str, dict[str, float]] = Field(
         default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
     )
-    metric: str = Field("J_tot", description="metric plotted against each parameter")
+    metric: str | None = Field(None, description="metric plotted against each parameter (default: the experiment's first)")
     metrics: list[str] | None = Field(
         None, min_length=1, description="several metrics (overrides metric): a table section and a figure column each, "
         "e.g. a transient and a steady-state error to show a trade-off",
@@ -314,8 +315,6 @@ class SweepSpec(BaseModel):
             unknown = [g for g in c.groups or [] if g not in self.groups]  # a groups claim's pair: Experiment's check
             if unknown:
                 raise ValueError(f"{where}: unknown groups {unknown} (have: {', '.join(self.groups)})")
-            if c.metric is not None and c.metric not in self.shown:
-                raise ValueError(f"{where}: metric '{c.metric}' is not among the sweep's metrics {self.shown}")
         return self
 
     @property
@@ -377,6 +376,7 @@ class Experiment(BaseModel):
         if (self.scenario is None) == (self.scenarios is None):
             raise ValueError("give exactly one of 'scenario' or 'scenarios'")
         self._fill_signals()
+        self._fill_sweep()
         if self.scenarios is not None:
             return self._check_study()
         return self._check_single()
@@ -442,6 +442,19 @@ class Experiment(BaseModel):
                 if m.label in listed:
                     signals += [s for s in m.signals if s not in signals]
             self.table.signals = signals or list(default)
+
+    def _fill_sweep(self) -> None:
+        """The sweep's defaults, written out in the resolved config: ``variant`` the first of ``variants``, else the
+        experiment's first variant (the first that runs on ``sweep.scenario``); ``metric`` the first metric's name."""
+        spec = self.sweep
+        if spec is None:
+            return
+        if spec.variant is None:
+            there = [v.name for v in self.variants
+                     if spec.scenario is None or self.scenarios is None or v.scenarios is None or spec.scenario in v.scenarios]
+            spec.variant = (spec.variants or there or [None])[0]
+        if spec.metric is None and spec.metrics is None and self.metrics:
+            spec.metric = self.metrics[0].label
 
     def _check_study(self) -> Experiment:
         """A multi-scenario experiment: check the scenario references, then each part as a single experiment."""
@@ -593,6 +606,8 @@ class Experiment(BaseModel):
         if twice:
             raise ValueError(f"sweep.variants: {twice} given more than once")
         for i, c in enumerate(self.sweep.claims):  # two groups, or two variants (checked when swept side by side)
+            if c.metric is not None and c.metric not in self.sweep.shown:
+                raise ValueError(f"sweep.claims.{i}: metric '{c.metric}' is not among the sweep's metrics {self.sweep.shown}")
             pair = [c.above, c.below] if c.kind == "groups" else None
             if pair and not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
                 raise ValueError(f"sweep.claims.{i}: {pair} are neither two of the groups ({', '.join(self.sweep.groups)}) "

@@ -176,6 +176,9 @@ BAD = {
     "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
                                                 "params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}}),
                       "sweep.variant: 'nope' is not a variant (have: liu_eps0.2, proposed_d1.2)"),
+    "sweep_claim_metric": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
+                               {"kind": "trend", "param": "eps", "range": [0.1, 1.0], "metric": "rmse", "text": "t"}]}),
+                           "sweep.claims.0: metric 'rmse' is not among the sweep's metrics ['std']"),
 }
 
 

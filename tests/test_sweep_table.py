@@ -24,7 +24,7 @@ def synthetic(seeds=(0, 1)) -> pd.DataFrame:
     return df.assign(metric="J_tot", signal="z", status="ok")
 
 
-SPEC = SweepSpec(variant="x", params={
+SPEC = SweepSpec(variant="x", metric="J_tot", params={
     "k": SweepParam(key="k", range=(0, 1), probes=[0.0, 0.75]),
     "delta": SweepParam(key="delta", range=(0.1, 10), spacing="log", probes=[1.0, 10.0], trend=(1.0, 10.0)),
 })

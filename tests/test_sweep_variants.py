@@ -49,7 +49,7 @@ def two_variants(seeds=(0, 1)) -> pd.DataFrame:
     return df.assign(metric="J_tot", signal="z", status="ok", gnss="default")
 
 
-SPEC = SweepSpec.model_validate({"variant": "p", "variants": ["p", "q"], "params": {"k": {"key": "k", "range": (0, 1)}},
+SPEC = SweepSpec.model_validate({"variant": "p", "variants": ["p", "q"], "metric": "J_tot", "params": {"k": {"key": "k", "range": (0, 1)}},
                                  "claims": [{"kind": "trend", "param": "k", "range": (0, 1), "decreasing": True,
                                              "text": "J falls with k"}]})
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import itertools
+import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -71,6 +72,36 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     return "_sweep" + "".join(f"_{t}" for t in tags)
 
 
+def inline_params(args: Sequence[str]) -> tuple[list[str], dict[str, tuple[str, str]]]:
+    """The sweep command's PARAM arguments: the name of one of the config's ``sweep.params``, or a parameter given
+    in place, ``KEY=LO..HI`` (``:log`` after it for log spacing), with ``KEY`` as :class:`~marinebench.config.SweepParam`
+    reads it: ``delta_p1=0.5..3``, ``observer.cdo.lmi_decay=0.1..1``, ``world.gnss_sigma=0.05..3:log``. Such a
+    parameter is named after the key's last part and added to (or replaces) ``sweep.params``; a config without a
+    ``sweep`` section gets one. Returns the names, and for the parameters given in place the ``--set`` each stands
+    for: ``{"sweep.params.<name>": (argument, value)}``."""
+    names, sets = [], {}
+    for arg in args:
+        if "=" not in arg:
+            names.append(arg)
+            continue
+        key, _, rest = arg.partition("=")
+        bounds, _, spacing = rest.partition(":")
+        lo, sep, hi = bounds.partition("..")
+        try:
+            if not (re.fullmatch(r"[A-Za-z_][\w.]*", key.strip()) and sep and spacing in ("", "linear", "log")):
+                raise ValueError
+            value = {"key": key.strip(), "range": [float(lo), float(hi)], "spacing": spacing or "linear"}
+        except ValueError:
+            raise ConfigError("PARAM", arg, "expected a name of sweep.params or KEY=LO..HI[:log], e.g. delta_p1=0.5..3 or "
+                              "world.gnss_sigma=0.05..3:log") from None
+        name = value["key"].rsplit(".", 1)[-1]
+        if f"sweep.params.{name}" in sets or name in names:
+            raise ConfigError("PARAM", arg, f"'{name}' is swept twice")
+        names.append(name)
+        sets[f"sweep.params.{name}"] = (arg, json.dumps(value))
+    return names, sets
+
+
 def override_tags(overrides: Sequence[str], limit: int = 60) -> list[str]:
     """Folder-name tags of command-line overrides, one per ``key=value`` as given, lists as their
     comma-separated items (``scenario.sensors.gm_time_constant=100``, ``seed=7``,
@@ -98,7 +129,8 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     not replace the full sweep."""
     spec = exp.sweep
     if spec is None:
-        raise ConfigError(file, "sweep", "this config has no 'sweep' section")
+        raise ConfigError(file, "sweep", "this config has no 'sweep' section: give the parameters in place, "
+                          "KEY=LO..HI[:log] (e.g. marinebench sweep delta_p1=0.5..3 --config FILE)")
     name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides, grid)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
     groups = _checked_request(spec, params, groups, grid, file)

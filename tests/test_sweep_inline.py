@@ -1,0 +1,72 @@
+"""Sweep parameters given in place on the command line (``KEY=LO..HI[:log]``), on any config, with or without a
+``sweep`` section."""
+
+import json
+
+import pandas as pd
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.errors import ConfigError
+from marinebench.experiments.sweep import inline_params
+
+runner = CliRunner()
+
+
+def test_names_pass_through_and_a_parameter_in_place_becomes_its_setting():
+    names, sets = inline_params(["k", "world.gnss_sigma=0.05..3:log", "delta_p1=-1..2.5"])
+    assert names == ["k", "gnss_sigma", "delta_p1"]
+    arg, value = sets["sweep.params.gnss_sigma"]
+    assert arg == "world.gnss_sigma=0.05..3:log"
+    assert json.loads(value) == {"key": "world.gnss_sigma", "range": [0.05, 3.0], "spacing": "log"}
+    assert json.loads(sets["sweep.params.delta_p1"][1])["range"] == [-1.0, 2.5]
+
+
+@pytest.mark.parametrize("arg", ["eps=0.1-1", "eps=..1", "eps=0.1..1:cubic", "=0.1..1", "a b=0.1..1", "eps=x..1"])
+def test_a_malformed_parameter_is_refused_naming_it(arg):
+    with pytest.raises(ConfigError, match=r"expected a name of sweep.params or KEY=LO..HI\[:log\]") as info:
+        inline_params([arg])
+    assert info.value.file == "PARAM" and info.value.key == arg
+
+
+def test_the_same_name_twice_is_refused():
+    with pytest.raises(ConfigError, match="'eps' is swept twice"):
+        inline_params(["eps=0.1..1", "observer.eps=0.2..2"])
+
+
+def test_a_config_without_a_sweep_section_sweeps_a_parameter_given_in_place(tiny_config, tmp_path):
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps=0.1..0.4", "--n", "3", "--out", str(tmp_path),
+                              "--quiet"])
+    assert res.exit_code == 0, res.output
+    folder = tmp_path / "tiny_sweep_n3_eps=0.1..0.4_2seeds"
+    metrics = pd.read_csv(folder / "metrics.csv")
+    assert sorted(set(metrics["param_value"])) == pytest.approx([0.1, 0.25, 0.4])
+    assert set(metrics["experiment"]) == {folder.name} and set(metrics["metric"]) == {"std"}
+    spec = yaml.safe_load((folder / "config.resolved.yaml").read_text())["sweep"]
+    # the defaults are written out: the experiment's first variant and first metric
+    assert spec["variant"] == "liu_eps0.2" and spec["metric"] == "std"
+    assert spec["params"]["eps"]["key"] == "eps" and spec["params"]["eps"]["range"] == [0.1, 0.4]
+    # the resolved config is a config in its own right: the same sweep by name, the same numbers
+    res = runner.invoke(app, ["sweep", "--config", str(folder / "config.resolved.yaml"), "eps", "--n", "3", "--out",
+                              str(tmp_path / "again"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    again = pd.read_csv(tmp_path / "again" / "tiny_sweep_n3_2seeds" / "metrics.csv")
+    pd.testing.assert_series_equal(again["value"], metrics["value"])
+
+
+@pytest.mark.parametrize(("arg", "expected"), [
+    ("eps=0.4..0.1", "error: eps=0.4..0.1: bad range (0.4, 0.1) for linear spacing"),
+    ("eps=0..1:log", "error: eps=0..1:log: bad range (0.0, 1.0) for log spacing"),
+    ("nosuch=0.1..1", "error: nosuch=0.1..1: 'nosuch' is not a setting of variant 'liu_eps0.2'"),
+])
+def test_an_error_in_a_parameter_given_in_place_names_the_argument(tiny_config, tmp_path, arg, expected):
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), arg, "--n", "2", "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2 and res.output.startswith(expected) and len(res.output.strip().splitlines()) == 1, res.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_config_without_a_sweep_section_and_no_parameter_in_place_says_how(tiny_config, tmp_path):
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "give the parameters in place, KEY=LO..HI[:log]" in res.output, res.output
