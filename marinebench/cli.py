@@ -440,11 +440,12 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
         try:
             exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
             preflight(exp, config)
-        except ConfigError as exc:  # about a parameter given in place: name the argument, not the config
-            given = next((arg for key, (arg, _) in inline.items() if exc.key == key or exc.key.startswith(f"{key}.")), None)
-            if given is None:
+        except ConfigError as exc:  # about parameters given in place (a grid's pair: 'sweep.params.a,b'): name them
+            about = exc.key.removeprefix("sweep.params.").split(".")[0].split(",") if exc.key.startswith("sweep.params.") else []
+            given = [inline[f"sweep.params.{name}"][0] for name in about if f"sweep.params.{name}" in inline]
+            if not given:
                 raise
-            raise ConfigError(given, "", exc.message) from None
+            raise ConfigError(" ".join(given), "", exc.message) from None
     return base, exp
 
 

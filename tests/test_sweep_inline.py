@@ -70,3 +70,11 @@ def test_an_error_in_a_parameter_given_in_place_names_the_argument(tiny_config, 
 def test_a_config_without_a_sweep_section_and_no_parameter_in_place_says_how(tiny_config, tmp_path):
     res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps", "--out", str(tmp_path)])
     assert res.exit_code == 2 and "give the parameters in place, KEY=LO..HI[:log]" in res.output, res.output
+
+
+def test_an_error_about_a_grid_point_names_the_parameters_given_in_place(tiny_config, tmp_path):
+    """A world without position noise has none to scale: the check of each point names the pair swept."""
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps=0.1..0.4", "world.position_noise_scale=0..1",
+                              "--grid", "--n", "2", "--out", str(tmp_path), "--set", "scenario.sensors.position_noise={kind: none}"])
+    assert res.exit_code == 2 and res.output.startswith("error: eps=0.1..0.4 world.position_noise_scale=0..1: eps=0.1, "
+                                                        "position_noise_scale=0: scenario "), res.output
