@@ -629,6 +629,22 @@ def report(
 
 
 @app.command()
+def figures(
+    results: Annotated[list[Path], typer.Argument(metavar="RESULTS", help="result folders written by run --traces")],
+) -> None:
+    """Draw a result's figures again, without simulating: from its traces.csv.gz (run --traces) and the figures: of its
+    config.resolved.yaml, which may be edited first (other signals, variants or files)."""
+    from marinebench.results.outputs import redraw_figures
+
+    for folder in results:
+        with one_line_errors():
+            if not folder.is_dir():
+                raise MarinebenchError(f"{folder}: no such directory")
+            drawn = redraw_figures(folder)
+        out.print(f"{folder}: {len(drawn)} figure(s) -> {folder / 'figures'}", markup=False)
+
+
+@app.command()
 def validate(
     files: Annotated[list[Path], typer.Argument(metavar="FILE", help="experiment or scenario YAML files")],
     set_: Sets = None,

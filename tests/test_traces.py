@@ -72,3 +72,66 @@ def test_a_multi_scenario_experiment_names_each_world(tmp_path):
     assert frame.groupby("scenario")["t"].max().max() == pytest.approx(2.0, abs=0.05)
     # a controller's commands have a truth and no estimate
     assert frame.loc[frame["signal"] == "tau_depth", "estimate"].isna().all()
+
+
+def _run_with_traces(config, out):
+    res = CliRunner().invoke(app, ["run", str(config), "--traces", "--quiet", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    return out / config.stem
+
+
+def test_figures_redraws_a_results_figures_from_its_traces_as_run_drew_them(tiny_config, tmp_path):
+    import matplotlib.image as mpimg
+
+    folder = _run_with_traces(tiny_config, tmp_path)
+    drawn = {p.name: mpimg.imread(p) for p in (folder / "figures").iterdir()}
+    for p in (folder / "figures").iterdir():
+        p.unlink()
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    assert res.exit_code == 0 and res.output.strip() == f"{folder}: 2 figure(s) -> {folder / 'figures'}", res.output
+    assert sorted(p.name for p in (folder / "figures").iterdir()) == sorted(drawn)
+    for name, image in drawn.items():  # the traces are written to 10 digits: at most an anti-aliased pixel's shade
+        assert np.abs(mpimg.imread(folder / "figures" / name) - image).max() <= 2 / 255, name
+
+
+def test_figures_draws_what_the_edited_config_asks_for(tiny_config, tmp_path):
+    import yaml
+
+    folder = _run_with_traces(tiny_config, tmp_path)
+    resolved = folder / "config.resolved.yaml"
+    doc = yaml.safe_load(resolved.read_text())
+    doc["figures"] = [{"file": "r_only_liu.png", "signals": ["r"], "variants": ["liu_eps0.2"]}]
+    resolved.write_text(yaml.safe_dump(doc, sort_keys=False))
+    assert CliRunner().invoke(app, ["figures", str(folder)]).exit_code == 0
+    assert [p.name for p in (folder / "figures").iterdir()] == ["r_only_liu.png"]
+
+
+def test_figures_of_a_study_draw_each_worlds_runs(tmp_path):
+    config = ROOT / "configs" / "tijjani_table3.yaml"
+    res = CliRunner().invoke(app, ["run", str(config), "--traces", "--quiet", "--out", str(tmp_path),
+                                   "--set", "seeds=1", "--set", "scenarios.*.horizon=2"])
+    assert res.exit_code == 0, res.output
+    folder = tmp_path / config.stem
+    before = sorted(p.name for p in (folder / "figures").iterdir())
+    assert CliRunner().invoke(app, ["figures", str(folder)]).exit_code == 0
+    assert sorted(p.name for p in (folder / "figures").iterdir()) == before and before
+
+
+def test_figures_without_traces_or_with_a_variant_the_config_lost_is_one_line(tiny_config, tmp_path):
+    import yaml
+
+    plain = tmp_path / "plain"
+    assert CliRunner().invoke(app, ["run", str(tiny_config), "--quiet", "--out", str(plain)]).exit_code == 0
+    res = CliRunner().invoke(app, ["figures", str(plain / "tiny")])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {plain / 'tiny'}: no {FILE} to draw from (run the config with --traces)"
+    folder = _run_with_traces(tiny_config, tmp_path / "traced")
+    doc = yaml.safe_load((folder / "config.resolved.yaml").read_text())
+    doc["variants"] = doc["variants"][:1]
+    doc["table"]["paper"]["values"] = {}
+    (folder / "config.resolved.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    before = {p.name: p.read_bytes() for p in (folder / "figures").iterdir()}
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    assert res.exit_code == 2 and "variants ['proposed_d1.2'] are not in the config (have: liu_eps0.2)" in res.output, res.output
+    assert {p.name: p.read_bytes() for p in (folder / "figures").iterdir()} == before  # nothing half-drawn
+    res = CliRunner().invoke(app, ["figures", str(tmp_path / "nope")])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {tmp_path / 'nope'}: no such directory"

@@ -105,11 +105,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
         figdir = tmp / "figures"
         figdir.mkdir()
         for part in result.parts.values() or [result]:
-            t, truth, est = part.traces
             variant, seed = part.run_variant[part.traced], part.run_seed[part.traced]  # the traces' columns
-            for spec in part.experiment.figures:
-                draw = tracking if spec.kind == "tracking" else timeseries
-                draw(part.experiment, spec, t, truth, est, variant, seed, figdir / spec.file)
+            draw_figures(part.experiment, (*part.traces, variant, seed), figdir)
         worlds = {name: exp.part(name).scenario for name in exp.scenario_names}
         (tmp / "manifest.json").write_text(
             manifest(
@@ -131,6 +128,39 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
             )
         )
     return out_dir
+
+
+def draw_figures(part, traced: tuple, figdir: Path) -> None:
+    """Draw the figures of one scenario's ``part`` of an experiment from its ``traced`` arrays, ``(t, truth, est,
+    variant, seed)`` (``RunResult.traces`` and its traced runs, or :func:`~marinebench.results.traces.traced_arrays`
+    of a written ``traces.csv.gz``) into ``figdir``."""
+    for spec in part.figures:
+        draw = tracking if spec.kind == "tracking" else timeseries
+        draw(part, spec, *traced, figdir / spec.file)
+
+
+def redraw_figures(folder: Path) -> list[str]:
+    """Draw a result folder's figures again from its ``traces.csv.gz`` and the ``figures:`` of its
+    ``config.resolved.yaml`` (edited, say, to show other signals or variants), without simulating, and swap them
+    in for ``figures/`` atomically; returns the files drawn. Raises MarinebenchError naming the folder."""
+    from marinebench.errors import MarinebenchError
+    from marinebench.loading import load_experiment
+    from marinebench.results.traces import read_traces, traced_arrays
+
+    folder = Path(folder)
+    if not (folder / TRACES_FILE).exists():
+        raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
+    exp, _ = load_experiment(folder / "config.resolved.yaml")
+    frame = read_traces(folder / TRACES_FILE)
+    with atomic_directory(folder / "figures") as figdir:
+        for name in exp.scenario_names:
+            part = exp.part(name)
+            try:
+                traced = traced_arrays(frame, part)
+            except ValueError as exc:
+                raise MarinebenchError(f"{folder / TRACES_FILE}: {exc}") from None
+            draw_figures(part, traced, figdir)
+    return [spec.file for name in exp.scenario_names for spec in exp.part(name).figures]
 
 
 def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, params: list[str], grid: bool,

@@ -81,3 +81,27 @@ def write_traces(result: RunResult, path: Path) -> None:
 def read_traces(path: Path) -> pd.DataFrame:
     """A written ``traces.csv.gz`` as the DataFrame :func:`trace_frame` gave."""
     return pd.read_csv(path, keep_default_na=False, na_values=[""])
+
+
+def traced_arrays(frame: pd.DataFrame, part) -> tuple:
+    """The inverse of :func:`trace_frame` for one scenario's ``part`` of an experiment (``Experiment.part``): the
+    arrays the figures draw, ``(t, truth, est, variant, seed)``: times ``(T,)``, ``{signal: (T, R)}`` for the truth
+    and for the signals that have an estimate, and each of the R traced runs' variant index and seed. Raises
+    ValueError when the frame names a variant the experiment does not have."""
+    rows = frame[frame["scenario"] == part.scenario.name]
+    index = {v.name: i for i, v in enumerate(part.variants)}
+    unknown = sorted(set(rows["variant"]) - set(index))
+    if unknown:
+        raise ValueError(f"variants {unknown} are not in the config (have: {', '.join(index)})")
+    runs = list(dict.fromkeys(zip(rows["variant"], rows["seed"])))
+    t = np.sort(rows["t"].unique())
+    truth, est = {}, {}
+    for signal, block in rows.groupby("signal", sort=True):
+        wide = block.pivot_table(index="t", columns=["variant", "seed"], values=["truth", "estimate"], dropna=False)
+        truth[signal] = np.column_stack([wide["truth"][run].reindex(t).to_numpy() for run in runs])
+        values = np.column_stack([wide["estimate"][run].reindex(t).to_numpy() for run in runs])
+        if not np.isnan(values).all():
+            est[signal] = values
+    variant = np.array([index[name] for name, _ in runs], dtype=int)
+    seed = np.array([s for _, s in runs], dtype=int)
+    return t, truth, est, variant, seed
