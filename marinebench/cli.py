@@ -727,26 +727,48 @@ def schema(kind: Annotated[FileKind, typer.Option(help="which files")] = FileKin
 
 @app.command(name="list")
 def list_kinds(
-    groups: Annotated[list[str] | None, typer.Argument(metavar="GROUP", help="only these groups, e.g. observers "
-                                                        "metrics (default: all)", show_default=False)] = None,
+    groups: Annotated[list[str] | None, typer.Argument(metavar="GROUP|KIND", help="only these groups, e.g. observers "
+                                                        "metrics (default: all); a kind, e.g. bejarano, lists its "
+                                                        "settings", show_default=False)] = None,
 ) -> None:
     """List registered kinds: scenarios, vessels, observers, controllers, signals, noise, events, metrics.
 
-    Each observer shows the scenario kinds it runs on. `marinebench list observers` lists one group."""
+    Each observer shows the scenario kinds it runs on. `marinebench list observers` lists one group;
+    `marinebench list bejarano` lists one kind's settings (the keys of its YAML mapping, and what a sweep's KEY may
+    name), with type, default and meaning."""
     from marinebench.keypaths import did_you_mean, near_misses
-    from marinebench.registry import kinds
+    from marinebench.registry import kind_models, kinds
 
-    registered = kinds()
+    registered, models = kinds(), kind_models()
+    named = {kind for entries in models.values() for kind in entries}
     for group in groups or []:
-        if group not in registered:
-            fail(f"GROUP: no group '{group}'{did_you_mean(near_misses(group, list(registered)))}; "
-                 f"have: {', '.join(registered)}")
+        if group not in registered and group not in named:
+            fail(f"GROUP: no group or kind '{group}'{did_you_mean(near_misses(group, [*registered, *sorted(named)]))}; "
+                 f"groups: {', '.join(registered)}")
     for group, entries in registered.items():
         if groups and group not in groups:
             continue
         out.print(f"[bold]{group}[/bold]")
         for name, doc in entries.items():
             out.print(f"  {name:<22} {doc}", markup=False)
+    for kind in [g for g in groups or [] if g in named and g not in registered]:
+        _print_settings(kind, registered, models)
+
+
+def _print_settings(kind: str, registered: dict, models: dict) -> None:
+    """``list KIND``: each group's model of that kind, its settings one per line."""
+    from rich.markup import escape
+
+    from marinebench.registry import fields_of
+
+    for group, entries in models.items():
+        if kind not in entries:
+            continue
+        out.print(f"[bold]{kind}[/bold] ({group}): {escape(registered[group][kind])}")
+        rows = fields_of(entries[kind])
+        width = max((len(name) for name, *_ in rows), default=0)
+        for name, type_, default, text in rows:
+            out.print(f"  {name:<{width}}  {type_} = {default}" + (f"  {text}" if text else ""), markup=False)
 
 
 # Each command's help is its docstring with every paragraph on one line: typer's rich help keeps a docstring's

@@ -589,8 +589,37 @@ def test_list_takes_groups():
     assert headers == ["observers", "metrics"]  # the registry's order
     assert "  j_tot " in res.output and "  bejarano " in res.output and "cybership2" not in res.output
     res = runner.invoke(app, ["list", "observer"])
-    assert res.exit_code == 2 and res.output.startswith("error: GROUP: no group 'observer' (did you mean observers?); "
-                                                        "have: scenarios, vessels, observers"), res.output
+    assert res.exit_code == 2 and res.output.startswith("error: GROUP: no group or kind 'observer' (did you mean observers?); "
+                                                        "groups: scenarios, vessels, observers"), res.output
+    res = runner.invoke(app, ["list", "bejaran"])
+    assert res.exit_code == 2 and "(did you mean bejarano?)" in res.output, res.output
+
+
+def test_list_of_a_kind_gives_its_settings_with_type_default_and_meaning():
+    res = runner.invoke(app, ["list", "bejarano"], env={"COLUMNS": "250"})
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert lines[0].startswith("bejarano (observers): Tuning of the proposed estimator") and "[open_loop_asv, dp_supply]" in lines[0]
+    assert any(line.split()[:4] == ["delta_p1", "float", "=", "0.05"] for line in lines), res.output
+    assert not any(line.split()[0] == "kind" for line in lines[1:])
+    # a nested mapping's settings under their dotted names, as --set and a sweep's KEY write them
+    res = runner.invoke(app, ["list", "dp_supply"], env={"COLUMNS": "250"})
+    assert "  sensors.gnss_sigma " in res.output and "  horizon " in res.output and "float = required" in res.output
+    assert "{kind: supply_dp_linear} | {kind: supply_shipx_lf}" in res.output  # a kind's own settings: list that kind
+    # a name in two groups: both
+    res = runner.invoke(app, ["list", "custom"], env={"COLUMNS": "250"})
+    assert "custom (observers):" in res.output and "custom (controllers):" in res.output
+
+
+def test_every_listed_kind_has_its_settings_and_every_model_is_listed():
+    from marinebench.registry import fields_of, kind_models, kinds
+
+    listed, models = kinds(), kind_models()
+    assert {g: set(k) for g, k in models.items()} == {g: set(k) for g, k in listed.items()}
+    for group, entries in models.items():
+        for kind, model in entries.items():
+            rows = fields_of(model)
+            assert all(name and type_ and default for name, type_, default, _ in rows), (group, kind)
 
 
 def test_experiment_from_another_experiment(tiny_config, tmp_path):
