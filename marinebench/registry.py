@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import types
 import typing
 
 
@@ -90,13 +91,13 @@ def kind_models() -> dict[str, dict[str, type]]:
 
 
 def type_name(tp) -> str:
-    """A field's type as a user writes it: ``float | None``, ``tuple[float, float]``, ``'linear' | 'log'``, a model's
-    class name."""
+    """A field's type as a user writes it: ``float | None``, ``tuple[float, float]``, ``'linear' | 'log'``; a nested
+    mapping as its kinds (``{kind: jonswap}``) or, without a kind, ``mapping``."""
     if typing.get_origin(tp) is typing.Annotated:
         return type_name(typing.get_args(tp)[0])
     if typing.get_origin(tp) is typing.Literal:
         return " | ".join(repr(a) for a in typing.get_args(tp))
-    if typing.get_origin(tp) in (typing.Union, __import__("types").UnionType):
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
         return " | ".join(type_name(a) for a in typing.get_args(tp))
     args = typing.get_args(tp)
     if args:
