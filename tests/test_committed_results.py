@@ -1,4 +1,4 @@
-"""The committed results are self-consistent: each folder's ``table.md`` and ``claims.md`` are what the current code
+"""The committed results (and the CI gate's quick reference) are self-consistent: each folder's ``table.md`` and ``claims.md`` are what the current code
 makes of its own ``metrics.csv`` and ``config.resolved.yaml``, so that anyone can derive them from the files (and
 a change to the tables or claims that was not rerun shows here)."""
 
@@ -19,7 +19,7 @@ from marinebench.results.tables import markdown_table
 
 from .conftest import ROOT
 
-FOLDERS = sorted(p for p in (ROOT / "results").iterdir() if (p / "manifest.json").exists())
+FOLDERS = sorted(p for top in ("results", "reference/quick") for p in (ROOT / top).iterdir() if (p / "manifest.json").exists())
 
 
 def _read(folder: Path):
@@ -54,7 +54,7 @@ def test_there_are_experiments_and_sweeps():
     assert len(FOLDERS) >= 30 and kinds == {True, False}
 
 
-@pytest.mark.parametrize("folder", FOLDERS, ids=lambda p: p.name)
+@pytest.mark.parametrize("folder", FOLDERS, ids=lambda p: f"{p.parent.name}/{p.name}")
 def test_table_and_claims_are_made_from_the_folders_own_metrics(folder):
     manifest, exp, metrics, claims = _read(folder)
     table, made_claims = _sweep_files(manifest, exp, metrics) if "params" in manifest else _experiment_files(exp, metrics)
