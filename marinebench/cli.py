@@ -341,9 +341,10 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
 
 @app.command()
 def sweep(
-    params: Annotated[list[str], typer.Argument(metavar="PARAM", help="parameters to sweep one at a time: names of the config's "
-                                                "sweep.params, or KEY=LO..HI[:log] given in place (delta_p1=0.5..3, "
-                                                "world.gnss_sigma=0.05..3:log)")],
+    params: Annotated[list[str] | None, typer.Argument(metavar="PARAM", help="parameters to sweep one at a time: names of the "
+                                                       "config's sweep.params (default: all of them), or KEY=LO..HI[:log] given "
+                                                       "in place (delta_p1=0.5..3, world.gnss_sigma=0.05..3:log)",
+                                                       show_default=False)] = None,
     config: SweepConfig = DEFAULT_SWEEP,
     n: Annotated[int | None, typer.Option("--n", metavar="N", help="points per parameter (default: the config's)")] = None,
     gnss: Annotated[str | None, typer.Option("--gnss", "--groups", metavar="GROUPS", help="comma-separated world groups of "
@@ -392,10 +393,10 @@ def sweep(
     groups = gnss.split(",") if gnss else None
     overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     with one_line_errors():
-        params, inline = inline_params(params)
+        params, inline = inline_params(params or [])
     overrides = [arg for arg, _ in inline.values()] + overrides  # a parameter given in place names the folder, as --set does
-    base, exp = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid, overrides,
-                                  inline)
+    base, exp, params = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid,
+                                          overrides, inline)
     target = (out_dir if out_dir is not None else Path("results")) / (
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
@@ -427,16 +428,18 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
                       variants: str | None, groups: list[str] | None, n: int | None, horizon: float | None, grid: bool,
                       overrides: list[str], inline: dict[str, tuple[str, str]]):
     """sweep: the loaded experiment (its variants those of ``--variants``, or every one on the sweep's world for
-    'all') and the experiment whose variants are the sweep's points, its designs solved (preflight)."""
+    'all'), the experiment whose variants are the sweep's points, its designs solved (preflight), and the parameters
+    swept (``params``, or every one of the config's ``sweep.params`` when none is named)."""
     from marinebench.experiments.sweep import sweep_experiment
     from marinebench.loading import preflight
 
     with one_line_errors():
         base, _ = _load(config, sets, seed, seeds, sweep_params=False,  # the parameters are checked below
                         variants=None if variants == "all" else variants, inline=inline)
-        if variants == "all":  # every variant that runs on the sweep's scenario
+        if variants == "all" and base.sweep is not None:  # every variant that runs on the sweep's scenario
             names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
             base = base.model_copy(update={"sweep": base.sweep.model_copy(update={"variants": names})})
+        params = params or list(base.sweep.params if base.sweep is not None else [])
         try:
             exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
             preflight(exp, config)
@@ -446,7 +449,7 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
             if not given:
                 raise
             raise ConfigError(" ".join(given), "", exc.message) from None
-    return base, exp
+    return base, exp, params
 
 
 def _simulate_sweep(exp, target: Path, chunk_size: int, dask: str | None, workers: int | None, jobs: int,

@@ -78,3 +78,31 @@ def test_an_error_about_a_grid_point_names_the_parameters_given_in_place(tiny_co
                               "--grid", "--n", "2", "--out", str(tmp_path), "--set", "scenario.sensors.position_noise={kind: none}"])
     assert res.exit_code == 2 and res.output.startswith("error: eps=0.1..0.4 world.position_noise_scale=0..1: eps=0.1, "
                                                         "position_noise_scale=0: scenario "), res.output
+
+
+def test_without_a_parameter_named_every_one_of_the_section_is_swept(tiny_config, tmp_path):
+    section = "sweep={params: {eps: {key: eps, range: [0.1, 0.4]}, noise: {key: world.position_noise_scale, range: [0, 1]}}}"
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "--n", "2", "--set", section, "--out",
+                              str(tmp_path / "one"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    (folder,) = (tmp_path / "one").iterdir()
+    assert set(pd.read_csv(folder / "metrics.csv")["param"]) == {"eps", "noise"}
+    # a section of exactly two parameters is a grid's pair
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "--grid", "--n", "2", "--set", section, "--out",
+                              str(tmp_path / "grid"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    (folder,) = (tmp_path / "grid").iterdir()
+    metrics = pd.read_csv(folder / "metrics.csv")
+    assert set(metrics["param"]) == {"eps"} and set(metrics["param2"]) == {"noise"} and len(set(metrics["variant"])) == 4
+
+
+def test_all_variants_of_a_config_without_a_sweep_section_is_one_line(tiny_config, tmp_path):
+    """Before, `--variants all` on such a config crashed with a traceback (AttributeError)."""
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps", "--variants", "all", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+    assert "this config has no 'sweep' section: give the parameters in place" in res.output
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "world.position_noise_scale=0..1", "--variants", "all",
+                              "--n", "2", "--out", str(tmp_path / "all"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    (folder,) = (tmp_path / "all").iterdir()
+    assert set(pd.read_csv(folder / "metrics.csv")["sweep_variant"]) == {"liu_eps0.2", "proposed_d1.2"}
