@@ -476,6 +476,7 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
         make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
     _preflight_metrics(exp, file, groups)
+    _preflight_figures(exp, file, groups)
     if exp.engine.check_step:
         try:
             check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
@@ -556,11 +557,27 @@ def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) 
         checked.add(fingerprint)
 
 
-def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
-    """Every metric's signals are ones the variants' observers estimate and the world has a truth of."""
+def _estimated(groups: list) -> set[str]:
+    """The signals the variants' observers estimate; on a closed-loop world (no observer groups) its own."""
     from marinebench.rov_scenario import ROV_SIGNALS
 
-    signals = set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
+    return set().union(*(g.observer.signals for g in groups)) if groups else set(ROV_SIGNALS)
+
+
+def _preflight_figures(exp: Experiment, file: Path, groups: list) -> None:
+    """Every figure's signals are in the traces: estimated by a variant's observer, with a truth in the world. Before,
+    a figure of another signal failed after the whole simulation, with a traceback."""
+    truth = TRUTH_SIGNALS.get(exp.scenario.kind)
+    usable = _estimated(groups) & set(truth) if truth is not None else _estimated(groups)
+    for f in exp.figures:
+        if bad := [s for s in f.signals if s not in usable]:
+            raise ConfigError(file, "figures", f"{f.file}: no trace of {bad} on this world (a figure may show: "
+                              f"{', '.join(sorted(usable))})")
+
+
+def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
+    """Every metric's signals are ones the variants' observers estimate and the world has a truth of."""
+    signals = _estimated(groups)
     truth = TRUTH_SIGNALS.get(exp.scenario.kind)
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):

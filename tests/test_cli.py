@@ -171,6 +171,9 @@ BAD = {
                       "table.metrics.1: 'rmse' is not among the metrics ['std']"),
     "paper_variant": (lambda d: d["table"]["paper"]["values"].update(nobody={"u": 1.0}),
                       "table.paper.values: unknown variants ['nobody'] (have: liu_eps0.2, proposed_d1.2)"),
+    # before, the figure failed after the whole simulation, with a traceback (KeyError)
+    "figure_signal": (lambda d: d["figures"][0].update(signals=["nope"]),
+                      "figures: u.png: no trace of ['nope'] on this world (a figure may show: r, sigma_r, sigma_u, sigma_v, u, v)"),
     "figure_variant": (lambda d: d["figures"][0].update(variants=["nope"]),
                        "figures: u.png names unknown variants ['nope'] (have: liu_eps0.2, proposed_d1.2)"),
     "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
