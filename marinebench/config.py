@@ -82,7 +82,7 @@ class ErrorMetric(BaseModel):
     kind: Literal["std", "rmse", "max_abs"] = "std"
     name: str | None = Field(None, pattern=NAME, description="metric name in metrics.csv (default: the kind)")
     signals: list[str] | None = Field(
-        None, description="default: every signal the scenario kind's observers estimate (open_loop_asv: u, v, r, "
+        None, min_length=1, description="default: every signal the scenario kind's observers estimate (open_loop_asv: u, v, r, "
         "sigma_u, sigma_v, sigma_r; dp_supply: x, y, psi, b_x, b_y, b_n, u, v, r; rov_tracking: depth, yaw)",
     )
     t_start: float = Field(
@@ -195,7 +195,7 @@ class TableSpec(BaseModel):
     title: str
     metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
     metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
-    signals: list[str] | None = Field(None, description="default: the signals of the tabulated metrics (z for j_tot)")
+    signals: list[str] | None = Field(None, min_length=1, description="default: the signals of the tabulated metrics (z for j_tot)")
     paper: PaperValues | None = None
     relative: tuple[str, str] | None = Field(
         None, description="add a row with the % change of the first variant's means against the second's "
@@ -221,8 +221,8 @@ class FigureSpec(BaseModel):
     kind: Literal["timeseries", "tracking"] = "timeseries"
     file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
     title: str = ""
-    signals: list[str] = Field(default_factory=lambda: ["depth", "yaw"])
-    variants: list[str] | None = Field(None, description="default: all variants (of this scenario)")
+    signals: list[str] = Field(default_factory=lambda: ["depth", "yaw"], min_length=1)
+    variants: list[str] | None = Field(None, min_length=1, description="default: all variants (of this scenario)")
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario shown (default: the first)")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
     t_range: tuple[float, float] | None = None
@@ -230,6 +230,12 @@ class FigureSpec(BaseModel):
         None, ge=0, description="scale the y axes to the data after this time [s] so the initial peaking does not "
         "hide the steady state (default: the first metric's t_start)",
     )
+
+    @model_validator(mode="after")
+    def _time_range(self) -> FigureSpec:
+        if self.t_range is not None and not self.t_range[0] < self.t_range[1]:
+            raise ValueError(f"t_range: {list(self.t_range)}: the start must be before the end")
+        return self
 
 
 class SweepParam(BaseModel):
@@ -297,7 +303,7 @@ class SweepSpec(BaseModel):
         None, min_length=1, description="several metrics (overrides metric): a table section and a figure column each, "
         "e.g. a transient and a steady-state error to show a trade-off",
     )
-    signals: list[str] | None = Field(None, description="the metric's signals to tabulate and plot (default: all)")
+    signals: list[str] | None = Field(None, min_length=1, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
     claims: list[SweepClaim] = Field(default_factory=list, description="the paper's trends, checked on the curves")
 
@@ -556,9 +562,15 @@ class Experiment(BaseModel):
             if name not in kinds and name not in DIAGNOSTICS:
                 key = f"table.metrics.{i}" if self.table.metrics else "table.metric"
                 raise ValueError(f"{key}: '{name}' is not among the metrics {kinds}")
+        recorded = {s for name in self.table.shown for s in (self.metric_signals(name) or ["z"])}  # diagnostics: z
+        if unknown := [s for s in self.table.signals or [] if s not in recorded]:
+            raise ValueError(f"table.signals: {unknown} are not recorded by the table's metrics (they record: "
+                             f"{', '.join(sorted(recorded))})")
         rel = self.table.relative
         if rel is not None and not set(rel) <= set(names):
             raise ValueError(f"table.relative: unknown variants {sorted(set(rel) - set(names))}")
+        if rel is not None and rel[0] == rel[1]:
+            raise ValueError(f"table.relative: a variant against itself ({rel[0]})")
         if self.table.paper is not None:
             unknown = set(self.table.paper.values) - set(names) - ({f"{rel[0]}_vs_{rel[1]}"} if rel else set())
             if unknown:
@@ -576,7 +588,13 @@ class Experiment(BaseModel):
             self._check_table(names, kinds)
         if self.sweep is not None:
             self._check_sweep(names, kinds)
+        files = [f.file for f in self.figures]
+        if twice := sorted({f for f in files if files.count(f) > 1}):
+            raise ValueError(f"figures: {twice} named twice (the second would replace the first)")
         for f in self.figures:
+            if self.scenarios is None and f.scenario not in (None, self.scenario.name):
+                raise ValueError(f"figures: {f.file}: scenario '{f.scenario}' is not this experiment's world "
+                                 f"('{self.scenario.name}'; scenario: is for experiments with several)")
             unknown = set(f.variants or []) - set(names)
             if unknown:
                 raise ValueError(f"figures: {f.file} names unknown variants {sorted(unknown)} (have: {', '.join(names)})")

@@ -157,7 +157,7 @@ BAD = {
                                    "(its observers: bejarano, custom, liu_eso, npo, resetting_fto)")),
     # the DP observers run on the ASV world, but it records no bias truth to compare their bias estimate with
     "signal_without_truth": (lambda d: (d["variants"][0].update(observer={"kind": "npo"}),
-                                        d["metrics"][0].update(signals=["u", "b_x"])),
+                                        d["metrics"][0].update(signals=["u", "b_x"]), d["table"].update(signals=["u"])),
                              "metrics.0.signals: ['b_x']: an open_loop_asv world has no truth of these"),
     # checks across keys name the key they are about and what is there instead
     "duplicate_variant_names": (lambda d: d["variants"][1].update(name="liu_eps0.2"),
@@ -174,6 +174,18 @@ BAD = {
     # before, the figure failed after the whole simulation, with a traceback (KeyError)
     "figure_signal": (lambda d: d["figures"][0].update(signals=["nope"]),
                       "figures: u.png: no trace of ['nope'] on this world (a figure may show: r, sigma_r, sigma_u, sigma_v, u, v)"),
+    # these ran before, writing an empty figure, a table of n/a or one figure over another
+    "figure_time_range": (lambda d: d["figures"][0].update(t_range=[3, 1]),
+                          "figures.0.t_range: [3.0, 1.0]: the start must be before the end"),
+    "figure_no_signals": (lambda d: d["figures"][0].update(signals=[]), "figures.0.signals: List should have at least 1 item"),
+    "figure_twice": (lambda d: d["figures"][1].update(file="u.png"), "figures: ['u.png'] named twice"),
+    "figure_other_world": (lambda d: d["figures"][0].update(scenario="nope"),
+                           "figures: u.png: scenario 'nope' is not this experiment's world ('cs2_noisy'"),
+    "table_signal": (lambda d: d["table"].update(signals=["u", "x"]),
+                     "table.signals: ['x'] are not recorded by the table's metrics (they record: r, sigma_r, sigma_u"),
+    "table_relative_itself": (lambda d: d["table"].update(relative=["liu_eps0.2", "liu_eps0.2"]),
+                              "table.relative: a variant against itself (liu_eps0.2)"),
+    "metric_no_signals": (lambda d: d["metrics"][0].update(signals=[]), "metrics.0.signals: List should have at least 1 item"),
     "figure_variant": (lambda d: d["figures"][0].update(variants=["nope"]),
                        "figures: u.png names unknown variants ['nope'] (have: liu_eps0.2, proposed_d1.2)"),
     "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
