@@ -16,7 +16,7 @@ class _Claim(BaseModel):
     table's, ``scenarios`` to every scenario its variants run on."""
 
     model_config = STRICT
-    text: str = Field(..., description="the claim, in the paper's words or close to them")
+    text: str = Field(..., min_length=1, description="the claim, in the paper's words or close to them")
     source: str = Field("", description="where the paper makes it, e.g. 'Table IV' or 'Sec. IV-B'")
     metric: str | None = Field(None, description="metric name (default: the table's metric)")
     signals: list[str] | None = Field(None, min_length=1, description="default: the table's signals")
@@ -26,6 +26,14 @@ class _Claim(BaseModel):
     @property
     def variant_names(self) -> list[str]:
         raise NotImplementedError
+
+    @model_validator(mode="after")
+    def _distinct_variants(self):
+        """A claim compares different variants: one named twice (``a: x, b: x``) would hold or fail trivially."""
+        names = self.variant_names
+        if twice := sorted({n for n in names if names.count(n) > 1}):
+            raise ValueError(f"names {twice} more than once: a claim compares different variants")
+        return self
 
 
 class LessClaim(_Claim):
@@ -41,6 +49,12 @@ class LessClaim(_Claim):
     @property
     def others(self) -> list[str]:
         return [self.b] if isinstance(self.b, str) else list(self.b)
+
+    @model_validator(mode="after")
+    def _some_other(self) -> LessClaim:
+        if not self.others:
+            raise ValueError("b: an empty list names no variant to compare with")
+        return self
 
     @property
     def variant_names(self) -> list[str]:
@@ -112,7 +126,7 @@ class _SweepClaim(BaseModel):
     (``claims.md`` of the sweep); ``metric`` defaults to the first tabulated, ``signal`` to every signal."""
 
     model_config = STRICT
-    text: str = Field(..., description="the claim, in the paper's words or close to them")
+    text: str = Field(..., min_length=1, description="the claim, in the paper's words or close to them")
     source: str = Field("", description="where the paper makes it, e.g. 'Fig. 3'")
     param: str = Field(..., description="the swept parameter (a name of sweep.params)")
     metric: str | None = None
@@ -128,6 +142,12 @@ class ProbeClaim(_SweepClaim):
     at: float
     vs: float
     factor: float = Field(1.0, gt=0)
+
+    @model_validator(mode="after")
+    def _two_values(self) -> ProbeClaim:
+        if self.at == self.vs:
+            raise ValueError(f"at and vs are both {self.at:g}: a probe claim compares two values")
+        return self
 
 
 class TrendClaim(_SweepClaim):
@@ -152,6 +172,12 @@ class GroupsClaim(_SweepClaim):
     below: str
     factor: float = Field(1.0, gt=0, description="below's curve under factor × above's at every value (0.7: at least 30 % "
                           "under it; 1.1: at most 10 % over it)")
+
+    @model_validator(mode="after")
+    def _two_curves(self) -> GroupsClaim:
+        if self.above == self.below:
+            raise ValueError(f"above and below are both '{self.above}': a groups claim compares two curves")
+        return self
 
 
 SweepClaim = Annotated[ProbeClaim | TrendClaim | GroupsClaim, Field(discriminator="kind")]

@@ -362,10 +362,10 @@ def test_committed_configs_have_only_checkable_claims():
 
 
 def test_run_writes_claims_and_require_claims_gates(tmp_path):
-    """A claim that holds and one that cannot (a below itself): claims.md, manifest, summary line, exit codes."""
+    """A claim that holds and one that does not (a 1000x below b): claims.md, manifest, summary line, exit codes."""
     cfg = tiny_with_claims(tmp_path, [
         {"kind": "less", "a": A, "b": B, "factor": 100, "signals": ["u"], "text": "holds"},
-        {"kind": "less", "a": A, "b": A, "signals": ["u"], "text": "cannot hold"},
+        {"kind": "less", "a": A, "b": B, "factor": 0.001, "signals": ["u"], "text": "cannot hold"},
     ])
     res = runner.invoke(app, ["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 0, res.output

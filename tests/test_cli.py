@@ -186,6 +186,19 @@ BAD = {
     "table_relative_itself": (lambda d: d["table"].update(relative=["liu_eps0.2", "liu_eps0.2"]),
                               "table.relative: a variant against itself (liu_eps0.2)"),
     "metric_no_signals": (lambda d: d["metrics"][0].update(signals=[]), "metrics.0.signals: List should have at least 1 item"),
+    # claims that would hold or fail trivially, or say nothing
+    "claim_same_variant": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": "liu_eps0.2", "text": "t"}]),
+                           "claims.0: names ['liu_eps0.2'] more than once: a claim compares different variants"),
+    "claim_no_other": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": [], "text": "t"}]),
+                       "claims.0.b: an empty list names no variant to compare with"),
+    "claim_no_text": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": "proposed_d1.2", "text": ""}]),
+                      "claims.0.text: String should have at least 1 character"),
+    "sweep_claim_one_value": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
+                                  {"kind": "probe", "param": "eps", "at": 0.5, "vs": 0.5, "text": "t"}]}),
+                              "sweep.claims.0: at and vs are both 0.5: a probe claim compares two values"),
+    "sweep_claim_one_curve": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
+                                  {"kind": "groups", "param": "eps", "above": "a", "below": "a", "text": "t"}]}),
+                              "sweep.claims.0: above and below are both 'a': a groups claim compares two curves"),
     "figure_variant": (lambda d: d["figures"][0].update(variants=["nope"]),
                        "figures: u.png names unknown variants ['nope'] (have: liu_eps0.2, proposed_d1.2)"),
     "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
