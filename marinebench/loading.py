@@ -467,22 +467,36 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     from marinebench.experiments.runner import make_world, plant_of
     from marinebench.sim.engine import check_step
 
-    plant = plant_of(exp.scenario)  # the model every variant's observer is designed on
+    model_key = "design_vessel" if getattr(exp.scenario, "design_vessel", None) is not None else "vessel"
+    with _numerics(file, f"{key}.{model_key}", "the vessel model cannot be built from these values"):
+        plant = plant_of(exp.scenario)  # the model every variant's observer is designed on
     named = [(v.name, g) for i, v in zip(positions, exp.variants)
              if (g := _preflight_variant(exp, file, i, v, plant)) is not None]
     groups = [g for _, g in named]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
     with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
-        make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
+        world = make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
     _preflight_metrics(exp, file, groups)
     _preflight_figures(exp, file, groups)
     if exp.engine.check_step:
         try:
-            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit)
+            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit, world)
         except StiffnessError as exc:
-            fastest = max(named, key=lambda pair: pair[1].observer.max_rate())[0]
-            raise ConfigError(file, f"{key}.dt", f"{exc} (the fastest: variant {fastest!r})") from None
+            raise ConfigError(file, f"{key}.dt", f"{exc} ({_fastest(exp, named, world)})") from None
+
+
+def _fastest(exp: Experiment, named: list, world: Any) -> str:
+    """Which variant has the fastest observer pole: its observer group's, or those its world integrates (one run per
+    variant, as preflight builds it; a world's own setting can make them all alike)."""
+    rates = dict.fromkeys((v.name for v in exp.variants), 0.0)
+    for name, group in named:
+        rates[name] = max(rates[name], group.observer.max_rate())
+    for v, rate in zip(exp.variants, world.observer_rates() if hasattr(world, "observer_rates") else []):
+        rates[v.name] = max(rates[v.name], float(rate))
+    if len(rates) > 1 and len(set(rates.values())) == 1:
+        return "every variant alike"
+    return f"the fastest: variant {max(rates, key=rates.__getitem__)!r}"
 
 
 def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
@@ -537,12 +551,9 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
 
 def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     """Solve the scenario's CDO design (LMIs (39)-(40)) and each distinct per-variant CDO override's."""
-    from marinebench.errors import DesignError
-
-    try:
+    failure = "the CDO design fails for these values"
+    with _numerics(file, f"{key}.cdo", failure):
         exp.scenario.cdo_design()
-    except DesignError as exc:
-        raise ConfigError(file, f"{key}.cdo", str(exc)) from None
     checked = set()
     for i, v in zip(positions, exp.variants):
         if v.observer is None or not v.observer.cdo:
@@ -550,10 +561,8 @@ def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) 
         cdo = v.observer.resolve(exp.scenario)[0]
         if (fingerprint := cdo.model_dump_json()) in checked:
             continue
-        try:
+        with _numerics(file, f"variants.{i}.observer.cdo", failure):
             exp.scenario.cdo_design(cdo)
-        except DesignError as exc:
-            raise ConfigError(file, f"variants.{i}.observer.cdo", str(exc)) from None
         checked.add(fingerprint)
 
 

@@ -243,6 +243,7 @@ class RovWorld:
         self.cdo_gain = _per_run(cdos, CdoParams.injection)[:, None]
         self.k_w = np.array([[c.k_w] for c in cdos])
         self.eo_gain = _per_run(eos, EoParams.gain)[:, None]
+        self._rates = np.maximum(_per_run(cdos, CdoParams.max_rate), _per_run(eos, EoParams.max_rate))
         self.feedback = [spec.feedback for spec, _ in controllers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
@@ -253,6 +254,11 @@ class RovWorld:
         self.thrust_response = 1.0 - np.exp(-sc.dt / lag) if lag > 0 else 1.0  # per step of T dtau/dt = cmd - tau
         self.weight = sc.vessel.mass * 9.81
         self._yaw_pts = [(t, np.deg2rad(v)) for t, v in sc.yaw_ref_deg]
+
+    def observer_rates(self) -> np.ndarray:
+        """Per run, the largest |pole| of the observers this world integrates with the plant (the CDO with its
+        predictor, the EO; every run carries both), for the engine's step check."""
+        return self._rates
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         d, dd = min_jerk(t, self.sc.depth_ref)

@@ -829,3 +829,51 @@ def test_run_warns_when_diverged_runs_are_left_out(tiny_config, tmp_path):
                               "--set", "variants.0.observer.eps=0.001", "--set", "engine.check_step=false"])
     assert res.exit_code == 0, res.output
     assert "warning: tiny: " in res.output and "metric values from diverged runs excluded" in res.output
+
+
+EXTREME = {
+    # eps = 1e-300 makes the ESO's gains overflow: before, NaN poles and a LinAlgError traceback
+    "liu_eso_eps": ("bejarano_fig2_3", "variants.0.observer.eps=1e-300",
+                    "scenario.dt: dt=0.005 s is too large for observer poles up to |lambda|=1e+300 rad/s"),
+    # CLARABEL (Rust) panics on a weight of 1e300; before, a pyo3 PanicException (a BaseException) went through
+    "solver_panic": ("bejarano_fig7", "variants.0.observer.trace_weight=1e300",
+                     "variants.0.observer: rotational LMI (delta_psi1=0.0, rho=50.0): the solver crashed"),
+    "singular_model": ("cross_dp_impulse", "scenario.design_vessel.L=1e-300",
+                       "scenario.design_vessel: the vessel model cannot be built from these values (LinAlgError"),
+    # the CDO's per-sample map overflows: before, a LinAlgError (inf in expm) or an OverflowError (theta**3)
+    "cdo_period": ("tijjani_observers", "scenario.sensors.depth_period=1e300",
+                   "scenario.cdo: CDO depth: the per-sample error map has spectral radius inf >= 1 at h = 1e+300 s"),
+    "cdo_theta": ("tijjani_observers", "scenario.cdo.theta=1e300",
+                  "scenario.cdo: CDO depth: the per-sample error map has spectral radius inf >= 1 at h = 0.05 s"),
+    "cdo_k_w": ("tijjani_observers", "scenario.cdo.k_w=-1e300",
+                "scenario.cdo: CDO depth: the per-sample error map has spectral radius inf >= 1 at h = 0.05 s"),
+    # the ROV world's own observers are held to the step check as the others are: before, a stiff EO ran, diverged
+    # and its runs were dropped with a warning (and eps = 1e-300 failed `design` with a LinAlgError)
+    "rov_eo_stiff": ("tijjani_observers", "variants.1.observer.eo.eps=1e-4",
+                     ("scenario.dt: dt=0.002 s is too large for observer poles up to |lambda|=1e+04 rad/s (dt*|lambda| "
+                     "= 20 > 0.5); use dt <= 5e-05 (the fastest: variant 'eo')")),
+    "rov_eo_eps": ("tijjani_observers", "scenario.eo.eps=1e-300", ("rad/s (dt*|lambda| = 2e+297 > 0.5); use dt <= "
+                   "5e-301 (every variant alike)")),
+}
+
+
+@pytest.mark.parametrize("case", sorted(EXTREME))
+def test_values_in_range_but_extreme_are_one_line_errors(case):
+    """In range for their fields, but beyond what a design's numbers hold (found by setting every numeric leaf of
+    every config to +-1e300 and 1e-300): a one-line error naming the key, exit 2, no traceback."""
+    config, assignment, expected = EXTREME[case]
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / f"{config}.yaml"), "--set", assignment])
+    assert res.exit_code == 2 and isinstance(res.exception, SystemExit), res.output
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and expected in lines[0], res.output
+
+
+def test_liu_eso_gains_of_an_extreme_eps_do_not_overflow():
+    """The design summary's ESO gains (manifest, `marinebench design`) are formed in numpy: eps = 1e300 gives
+    gains that underflow to 0 where Python's float power raised OverflowError."""
+    res = runner.invoke(app, ["design", str(ROOT / "configs" / "bejarano_fig2_3.yaml"), "--json",
+                              "--set", "variants.0.observer.eps=1e300"])
+    assert res.exit_code == 0, res.output
+    design = json.loads(res.output)
+    gains = next(iter(design.values()))["liu_eps0.2"]["gains"]
+    assert gains == [pytest.approx(3e-300), 0.0, 0.0]

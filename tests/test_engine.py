@@ -78,6 +78,22 @@ def test_step_check_accepts_dt_lambda_at_the_limit_and_names_the_largest_step():
     assert check_step([], 1e3, 0.5) == 0.0
 
 
+class _WorldWithObservers:
+    """A world stand-in that integrates observers of its own (as the ROV world does its CDO and EO)."""
+
+    def observer_rates(self) -> np.ndarray:
+        return np.array([2.0, 8.0])
+
+
+def test_step_check_counts_the_observers_a_world_integrates():
+    """Before, the ROV world's CDO and EO were not checked: a stiff EO ran, diverged and was dropped with a warning."""
+    groups = [ObserverGroup(_Rate(4.0), np.arange(1))]
+    assert check_step(groups, 0.05, 0.5, _WorldWithObservers()) == 8.0
+    with pytest.raises(StiffnessError, match=r"up to \|lambda\|=8 rad/s"):
+        check_step(groups, 0.125, 0.5, _WorldWithObservers())
+    assert check_step(groups, 0.125, 0.5, object()) == 4.0  # a world without observers of its own
+
+
 def test_rk4_step_is_the_classic_scheme():
     """On x' = A x one step is the 4th-order Taylor polynomial of exp(A dt); on x' = f(t) it is Simpson's rule over
     the step (stages at t, t + dt/2 twice, t + dt); every state of the list (plant, observers) takes the same step."""

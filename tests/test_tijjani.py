@@ -562,6 +562,23 @@ def test_cdo_injection_is_delta_theta_times_k_star(k_star):
     np.testing.assert_allclose(EoParams(eps=0.5, a=(1.0, 2.0, 3.0)).gain(), [2.0, 8.0, 24.0], rtol=1e-15)
 
 
+def test_cdo_and_eo_fastest_poles_are_those_of_their_flows():
+    """The step check's rates: the EO's |poles| are those of its companion matrix (computed from a over eps, so an
+    extreme eps gives a huge rate, not an overflow); the CDO's the eigenvalues of its flow with the predictor."""
+    from marinebench.design.cdo import sampled_flow
+    from marinebench.observers.cdo import CdoParams, EoParams
+
+    eo = EoParams(eps=0.05, a=(6.0, 11.0, 6.0))  # poles -1/eps, -2/eps, -3/eps
+    assert eo.max_rate() == pytest.approx(60.0, rel=1e-12)
+    g = eo.gain()
+    companion = np.array([[-g[0], 1, 0], [-g[1], 0, 1], [-g[2], 0, 0]])
+    assert eo.max_rate() == pytest.approx(np.abs(np.linalg.eigvals(companion)).max(), rel=1e-9)
+    assert EoParams(eps=1e-300).max_rate() == pytest.approx(1e300, rel=1e-4)
+    cdo = CdoParams()
+    assert cdo.max_rate() == pytest.approx(np.abs(np.linalg.eigvals(sampled_flow(cdo.injection(), cdo.k_w))).max())
+    assert CdoParams(theta=1e300).max_rate() == np.inf
+
+
 @pytest.mark.parametrize("settings,key", [({"cdo": {"thetaa": 30.0}}, "thetaa"), ({"eo": {"epsilon": 0.1}}, "epsilon"),
                                           ({"cdo": {"theta": -1.0}}, "theta"), ({"k_w": 0.2}, "k_w")])
 def test_a_variants_observer_settings_are_checked_not_ignored(settings, key):

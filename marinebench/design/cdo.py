@@ -28,6 +28,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.linalg import expm
 
+from marinebench.design.lmi import solve
 from marinebench.errors import DesignError
 
 A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]])
@@ -61,12 +62,9 @@ def design_lmi(mu: float, lam: float = 1e-3) -> CdoDesign:
         S >> 0,
     ]
     prob = cp.Problem(cp.Minimize(cp.trace(S)), cons)
-    try:
-        prob.solve(solver=cp.CLARABEL)
-    except cp.error.SolverError as exc:
-        raise DesignError(f"CDO LMI (40) with mu={mu}: solver failed ({exc})") from None
-    if prob.status not in ("optimal", "optimal_inaccurate") or P.value is None:
-        raise DesignError(f"CDO LMI (40) with mu={mu}: {prob.status}")
+    solve(prob, f"CDO LMI (40) with mu={mu}", options={})  # CLARABEL's defaults
+    if P.value is None:
+        raise DesignError(f"CDO LMI (40) with mu={mu}: no solution ({prob.status})")
     Pv, Yv, Sv = P.value, Y.value, S.value
     k = np.linalg.solve(Pv, Yv).ravel()
     return CdoDesign(tuple(float(v) for v in k), Pv, Sv, verify_lmi(k, Pv, Sv, lam, mu), np.linalg.eigvals(A - np.outer(k, C)))
@@ -104,9 +102,12 @@ def sampled_flow(injection, k_w: float = 0.0, predictor: bool = True) -> np.ndar
 
 
 def sampled_radius(k_star, theta: float, k_w: float, h: float) -> float:
-    """Spectral radius of the per-sample error map (the CDO converges iff < 1)."""
-    F = sampled_flow(np.array([theta, theta**2, theta**3]) * np.asarray(k_star, dtype=float), k_w)
-    return float(np.abs(np.linalg.eigvals(expm(F * h)[:3, :3])).max())
+    """Spectral radius of the per-sample error map (the CDO converges iff < 1); ``inf`` where the map overflows
+    (extreme theta, K_w or h)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        F = sampled_flow(theta ** np.arange(1.0, 4.0) * np.asarray(k_star, dtype=float), k_w)
+        E = expm(F * h)[:3, :3] if np.isfinite(F * h).all() else np.full((3, 3), np.inf)
+    return float(np.abs(np.linalg.eigvals(E)).max()) if np.isfinite(E).all() else float("inf")
 
 
 def sample_noise_gains(injections, h: float, k_w: float = 0.0, predictor: bool = True,

@@ -65,16 +65,24 @@ def _sym(X: cp.Expression) -> cp.Expression:
 SOLVER_OPTIONS: dict[str, float] = {}  # CLARABEL settings (its defaults); tests tighten them to show the gains do not move
 
 
-def _solve(problem: cp.Problem, what: str) -> None:
-    """Solve with CLARABEL; 'inaccurate' solutions are accepted because ``verify`` re-checks them."""
+def solve(problem: cp.Problem, what: str, options: dict[str, float] | None = None) -> None:
+    """Solve with CLARABEL; 'inaccurate' solutions are accepted because the designs re-check them in numpy.
+
+    A solver that fails, or panics (CLARABEL is Rust: on extreme data such as a weight of 1e300 it can abort with a
+    ``pyo3_runtime.PanicException``, which derives from BaseException), or a problem that is not solved, raises
+    :class:`DesignError` naming ``what``."""
     import cvxpy as cp
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **SOLVER_OPTIONS)
-    except cp.error.SolverError as exc:  # pragma: no cover - solver crash
-        raise DesignError(f"{what}: solver failed ({exc})") from exc
+            problem.solve(solver=cp.CLARABEL, **(SOLVER_OPTIONS if options is None else options))
+    except cp.error.SolverError as exc:
+        raise DesignError(f"{what}: solver failed ({exc})") from None
+    except BaseException as exc:
+        if type(exc).__name__ != "PanicException":  # KeyboardInterrupt and the rest go on up
+            raise
+        raise DesignError(f"{what}: the solver crashed ({exc}); are the settings within a sensible range?") from None
     if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
         raise DesignError(f"{what}: LMI problem is {problem.status}")
 
@@ -107,7 +115,7 @@ def rotational_design(delta: float, rho: float, scale_above: float = 50.0, trace
         _sym(lyap + 2 * d * P) << 0,  # (25)
         _sym(cp.bmat([[-r_ * P, PA], [PA.T, -r_ * P]])) << 0,  # disk region
     ]
-    _solve(cp.Problem(cp.Minimize(beta + trace_weight * cp.trace(P)), cons), f"rotational LMI (delta_psi1={delta}, rho={rho})")
+    solve(cp.Problem(cp.Minimize(beta + trace_weight * cp.trace(P)), cons), f"rotational LMI (delta_psi1={delta}, rho={rho})")
     L_bar = -np.linalg.solve(P.value, W.value)
     L = _scale_rows(L_bar, s, 1)
     poles = np.linalg.eigvals(A_PSI - L @ C_PSI)
@@ -150,7 +158,7 @@ def positional_design(
     )
     cons += [_sym(U) << 0]  # (28e)
     what = f"positional LMI (delta_p1={delta}, k_omega={k_omega}, k_n={k_n}, rho={rho})"
-    _solve(cp.Problem(cp.Minimize(beta + trace_weight * cp.trace(P)), cons), what)
+    solve(cp.Problem(cp.Minimize(beta + trace_weight * cp.trace(P)), cons), what)
     L_bar = np.linalg.solve(P.value, W.value)
     L = _scale_rows(L_bar, s, 2)
     poles = np.concatenate([np.linalg.eigvals(A0_P + r * S_TP + L @ C_P) for r in (r_min, 0.0, r_max)])

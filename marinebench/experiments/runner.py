@@ -197,7 +197,7 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
         elif o.kind == "custom":
             out[v.name] = {"source": o.source, "sha256": source_digest(o.source), "params": o.params}
         elif o.kind == "liu_eso":
-            gains = [o.k[0] / o.eps, o.k[1] / o.eps**2, o.k[2] / o.eps**3]
+            gains = o.gains().tolist()
             out[v.name] = {"gains": gains, "mode": o.mode, **(noise_parts(exp.scenario, {"u": gains, "v": gains}) if o.mode == "linear" else {})}
         elif len(exp.variants) <= DESIGNS_UP_TO:  # DP observers: Kalman gains (skipped for large sweeps)
             obs = make_observer(o.kind, [o], exp.scenario, plant_of(exp.scenario))
@@ -253,7 +253,7 @@ def _run_single(
     sc = exp.scenario
     world = make_world(exp, run_variant, run_seed)
     groups = build_groups(exp, run_variant, plant_of(sc))
-    rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf)
+    rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf, world)
     n_steps = steps(exp)
     recorders = _recorders(exp, run_variant, run_seed, n_steps)
     truth0 = world.truth(0.0, world.x0)

@@ -54,7 +54,17 @@ class CdoParams(BaseModel):
 
     def injection(self) -> np.ndarray:
         """Delta_theta K* = [theta K*_1, theta^2 K*_2, theta^3 K*_3]."""
-        return np.array([self.theta, self.theta**2, self.theta**3]) * np.array(self.gain())
+        with np.errstate(over="ignore"):
+            return self.theta ** np.arange(1.0, 4.0) * np.array(self.gain())
+
+    def max_rate(self) -> float:
+        """Largest |eigenvalue| of the flow between samples (estimation error and predictor, ``sampled_flow``), for
+        the engine's step check; ``inf`` if it overflows."""
+        from marinebench.design.cdo import sampled_flow
+
+        with np.errstate(over="ignore", invalid="ignore"):
+            F = sampled_flow(self.injection(), self.k_w)
+        return float(np.abs(np.linalg.eigvals(F)).max()) if np.isfinite(F).all() else float("inf")
 
 
 class EoParams(BaseModel):
@@ -66,7 +76,13 @@ class EoParams(BaseModel):
 
     def gain(self) -> np.ndarray:
         """[a1/eps, a2/eps^2, a3/eps^3]."""
-        return np.array(self.a) / self.eps ** np.arange(1, 4)
+        with np.errstate(over="ignore", divide="ignore"):
+            return np.array(self.a) / self.eps ** np.arange(1, 4)
+
+    def max_rate(self) -> float:
+        """Largest |pole|, for the engine's step check: the roots of ``x^3 + a1 x^2 + a2 x + a3`` over eps (the poles
+        of ``s^3 + (a1/eps) s^2 + ...``, without forming the gain, so an extreme eps cannot overflow)."""
+        return float(np.abs(np.roots([1.0, *self.a])).max() / self.eps)
 
 
 class RovObserverSpec(BaseModel):

@@ -33,6 +33,12 @@ class LiuEsoTuning(BaseModel):
     alpha: float = Field(0.95, gt=2 / 3, le=1, description="fal exponent (mode=fal)")
     fal_d: float = Field(0.01, gt=0, description="linear zone of fal in scaled units (mode=fal)")
 
+    def gains(self) -> np.ndarray:
+        """The linear gains ``(k1/eps, k2/eps^2, k3/eps^3)``; in numpy, so an extreme eps gives 0 or inf, not an
+        OverflowError."""
+        with np.errstate(over="ignore", divide="ignore"):
+            return np.asarray(self.k) / self.eps ** np.arange(1, 4)
+
 
 def fal(x: np.ndarray, alpha: float, d: float) -> np.ndarray:
     """Han's fal: linear ``x / d^(1-alpha)`` inside ``|x| <= d``, ``sig^alpha(x)`` outside."""
@@ -100,8 +106,7 @@ class LiuEsoObserver:
         return {n: xhat[:, 3 + i] for i, n in enumerate(names)}
 
     def max_rate(self) -> float:
-        rates = []
-        for eps, (k1, k2, k3) in zip(self.eps[:, 0], self.k):
-            A = np.array([[-k1 / eps, 1, 0], [-k2 / eps**2, 0, 1], [-k3 / eps**3, 0, 0]])
-            rates.append(np.abs(np.linalg.eigvals(A)).max())
-        return float(max(rates))
+        """The largest |pole| of the linear error dynamics. Their characteristic polynomial
+        ``s^3 + (k1/eps) s^2 + (k2/eps^2) s + k3/eps^3`` is ``eps^-3 p(eps s)`` with ``p(x) = x^3 + k1 x^2 + k2 x + k3``,
+        so the poles are p's roots over eps: no gain is formed, and an extreme eps cannot overflow into NaN."""
+        return float(max(np.abs(np.roots([1.0, *k])).max() / eps for eps, k in zip(self.eps[:, 0], self.k)))

@@ -47,9 +47,12 @@ class Recorder(Protocol):
     def update(self, k: int, t: float, truth: dict[str, np.ndarray], est: dict[str, np.ndarray]) -> None: ...
 
 
-def check_step(groups: list[ObserverGroup], dt: float, limit: float) -> float:
-    """Refuse a step that RK4 cannot integrate accurately for the designed observer poles."""
+def check_step(groups: list[ObserverGroup], dt: float, limit: float, world: World | None = None) -> float:
+    """Refuse a step that RK4 cannot integrate accurately for the designed observer poles: the groups' and those of
+    observers a world integrates itself (its ``observer_rates()``, per run, if it has one: the ROV's CDO and EO)."""
     rate = max((g.observer.max_rate() for g in groups), default=0.0)
+    if hasattr(world, "observer_rates"):
+        rate = max(rate, float(np.max(world.observer_rates(), initial=0.0)))
     if dt * rate > limit:
         raise StiffnessError(
             f"dt={dt:g} s is too large for observer poles up to |lambda|={rate:.4g} rad/s "
