@@ -106,3 +106,16 @@ def test_all_variants_of_a_config_without_a_sweep_section_is_one_line(tiny_confi
     assert res.exit_code == 0, res.output
     (folder,) = (tmp_path / "all").iterdir()
     assert set(pd.read_csv(folder / "metrics.csv")["sweep_variant"]) == {"liu_eps0.2", "proposed_d1.2"}
+
+
+def test_a_parameter_given_in_place_over_one_of_the_section_names_the_folder_once(tiny_config):
+    """Its argument names the folder (as --set does); before, the section's name of it came first as well
+    (``_sweep_eps_eps=0.2..0.3``). A parameter named, not given in place, keeps its tag."""
+    from marinebench.experiments.sweep import sweep_suffix
+    from marinebench.loading import load_experiment
+
+    section = "sweep={params: {eps: {key: eps, range: [0.1, 0.4]}, noise: {key: world.position_noise_scale, range: [0, 1]}}}"
+    exp, _ = load_experiment(tiny_config, [section])
+    assert sweep_suffix(exp, ["eps"], overrides=["eps=0.2..0.3"]) == "_sweep_eps=0.2..0.3_2seeds"
+    assert sweep_suffix(exp, ["eps"], overrides=["seed=3"]) == "_sweep_eps_seed=3_2seeds"
+    assert sweep_suffix(exp, ["eps"], overrides=["world.position_noise_scale=0..2"]) == "_sweep_eps_world.position_noise_scale=0..2_2seeds"

@@ -47,7 +47,8 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     order), ``_n<N>`` for another number of points, ``_<T>s`` for another horizon, the command line's
     ``overrides`` (``--set key=value`` and ``--seed``, see :func:`override_tags`) and ``_<seeds>seeds`` for a
     Monte-Carlo sweep (``torben_fig3`` + ``_sweep_eps_20seeds``, ``_sweep_k_dgnss_n21_200s``,
-    ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``). A grid sweep adds ``_grid`` and its two
+    ``_sweep_eps_scenario.sensors.gm_time_constant=100_3seeds``; a parameter given in place is named by its
+    argument alone: ``_sweep_k_omega=0.01..1000-log``). A grid sweep adds ``_grid`` and its two
     parameters in the order given (``_sweep_grid_k_eps``), ``_n<N>`` when not :data:`GRID_N` points per axis.
     Variants swept side by side (``sweep.variants``, ``--variants``) are named joined by ``+`` after the
     parameters (``_sweep_noise_scale_liu_eps0.1+proposed_d2.2``).
@@ -55,8 +56,9 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     spec = exp.sweep
     if grid:
         tags = ["grid", *params]
-    else:
-        tags = [p for p in spec.params if p in params] if set(params) < set(spec.params) else []
+    else:  # a parameter given in place (KEY=LO..HI, among the overrides) is named by its argument, once
+        in_place = {p for p in params if any(o.partition("=")[0].strip() == spec.params[p].key for o in overrides)}
+        tags = [p for p in spec.params if p in params and p not in in_place] if set(params) < set(spec.params) else []
     if len(spec.swept) > 1:
         tags.append("+".join(spec.swept))
     if groups and set(groups) < set(spec.groups):
