@@ -24,7 +24,9 @@ from marinebench.observers.base import BatchObserver
 
 
 class World(Protocol):
-    """A batch of simulated worlds (plant, inputs, environment, sensors)."""
+    """A batch of simulated worlds (plant, inputs, environment, sensors). Optional hooks: ``begin_step(k, t, x)``,
+    ``sampled(t, x)`` (see the module's docstring) and ``observer_rates() -> (B,)``, the fastest pole of observers
+    the world integrates in its own state (the ROV's CDO and EO), which :func:`check_step` counts."""
 
     x0: np.ndarray
 
