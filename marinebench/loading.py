@@ -475,15 +475,31 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     groups = [g for _, g in named]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
-    with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
-        world = make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
     _preflight_metrics(exp, file, groups)
     _preflight_figures(exp, file, groups)
-    if exp.engine.check_step:
-        try:
-            check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit, world)
-        except StiffnessError as exc:
-            raise ConfigError(file, f"{key}.dt", f"{exc} ({_fastest(exp, named, world)})") from None
+    # the world's numerics' warnings are shown only if it builds, passes the step check and starts finite
+    with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
+        world = make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
+        if exp.engine.check_step:
+            try:
+                check_step(groups, exp.scenario.dt, exp.engine.stiffness_limit, world)
+            except StiffnessError as exc:
+                raise ConfigError(file, f"{key}.dt", f"{exc} ({_fastest(exp, named, world)})") from None
+        if (problem := _first_step_problem(world)) is not None:  # after the step check, which says more
+            raise ConfigError(file, key, f"the world cannot be run from these values ({problem})")
+
+
+def _first_step_problem(world: Any) -> str | None:
+    """What is not finite in the world's first step (its sensors sampled, then its state derivative, measurement
+    and input at t = 0), or None. Values in range but absurd for the physics (a sea state's gamma of 1e300) would
+    otherwise make every run diverge at once, found only after the whole simulation."""
+    x0 = world.x0.copy()
+    with np.errstate(all="ignore"):
+        if hasattr(world, "begin_step"):
+            world.begin_step(0, 0.0, x0)
+        parts = dict(zip(("state derivative", "measurement", "input"), world.derivative(0.0, x0)))
+    bad = (["initial state"] if not np.isfinite(x0).all() else []) + [n for n, a in parts.items() if not np.isfinite(a).all()]
+    return f"not finite at t = 0: its {' and '.join(bad)}" if bad else None
 
 
 def _fastest(exp: Experiment, named: list, world: Any) -> str:

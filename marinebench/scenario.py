@@ -117,10 +117,10 @@ class ScenarioBase(BaseModel):
         return []
 
     def require_multiple_of_dt(self, period: float, key: str) -> None:
-        """Sampled components must tick on the engine's step grid."""
+        """Sampled components must tick on the engine's step grid, at most once per step."""
         ratio = period / self.dt
-        if abs(ratio - round(ratio)) > 1e-9:
-            raise ValueError(f"{key}: {period:g} s must be a multiple of dt={self.dt:g} s")
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(f"{key}: {period:g} s must be a multiple of dt={self.dt:g} s (one step or more)")
 
 
 class Scenario(ScenarioBase):

@@ -288,6 +288,26 @@ def test_jump_rule_boundaries_and_an_exactly_singular_window():
     assert np.allclose(zp[1], (z2[0] - 0.2 * z1[0]) / 0.8)
 
 
+def test_a_diverged_run_at_a_window_end_does_not_stop_the_batch():
+    """A run gone non-finite (here an absurd sea state, waves.gamma = 1e300) has NaN transition maps: before, the
+    condition number's SVD raised for the whole batch; now that run neither jumps nor fails, and the engine flags it
+    diverged, while the others jump as before."""
+    n = 9
+    rng = np.random.default_rng(3)
+    phi1, phi2 = np.eye(n)[None] * 0.5, np.eye(n)[None] * 0.1
+    z1, z2 = rng.normal(size=(1, n)), rng.normal(size=(1, n))
+    gone = phi1.copy()
+    gone[0, 2, 2] = np.nan
+    big, eps = np.array([[0.1, 0.6, 0.0]]), np.array([[0.5, 0.5, 0.05]])
+    zp, jumped, cond = fto_jump(twice(z1), twice(z2), np.concatenate([gone, phi1]), twice(phi2), twice(big),
+                                np.array([0.7, 0.7]), twice(eps), 1e10, np.ones(n))
+    assert list(jumped) == [False, True] and cond[0] == np.inf and np.isclose(cond[1], 1.0)
+    np.testing.assert_array_equal(zp[0], z1[0])
+    assert np.allclose(zp[1], 0.7 * (z2[0] - 0.2 * z1[0]) / 0.8 + 0.3 * z1[0])
+    _, jumped, cond = fto_jump(z1, z2, gone, phi2, big, np.array([0.7]), eps, 1e10, np.ones(n))  # all of them
+    assert not jumped[0] and cond[0] == np.inf
+
+
 @pytest.mark.parametrize("dt", [0.05, 0.01])
 def test_rk4_maps_match_taylor(dt):
     A = np.array([[[-1.0, 2.0], [0.0, -3.0]]])

@@ -102,6 +102,9 @@ def test_sensor_sample_time_must_be_on_the_step_grid():
     with pytest.raises(ValidationError, match=r"sensors.ts: 1.025 s must be a multiple of dt=0.05 s"):
         DpScenario(name="t", horizon=10, sensors={"ts": 1.025})
     assert DpScenario(name="t", horizon=10, dt=0.05, sensors={"ts": 0.15}).sensors.ts == 0.15  # 3 steps, despite rounding
+    # a period far below the step rounds to 0 steps: before, it passed, and the world divided by zero in its first step
+    with pytest.raises(ValidationError, match=r"sensors.ts: 1e-12 s must be a multiple of dt=0.05 s \(one step or more\)"):
+        DpScenario(name="t", horizon=10, sensors={"ts": 1e-12})
 
 
 def test_gauss_markov_between_samples_hold_or_linear():

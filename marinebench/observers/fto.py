@@ -49,7 +49,8 @@ def fto_jump(
 
     Shapes: z (B, n), phi (B, n, n), innovation and eps (B, p), k (B,); ``c_max`` and ``check`` a scalar or
     one per run; ``scale`` (n,) or one row per run (B, n). ``cond`` is evaluated for every window end (the
-    observer's diagnostics); ``z*`` is solved only for the runs that jump, which at a sweep's window ends are few.
+    observer's diagnostics; ``inf`` for a run gone non-finite, which does not jump and is left for the engine to
+    flag as diverged); ``z*`` is solved only for the runs that jump, which at a sweep's window ends are few.
     """
     n = z1.shape[1]
     sc = np.broadcast_to(scale, z1.shape)  # (B, n): each run's coordinates
@@ -59,8 +60,10 @@ def fto_jump(
         p2 = phi2 * sc[:, None, :] / sc[:, :, None]
         Ys = np.linalg.solve(np.swapaxes(p1, 1, 2), np.swapaxes(p2, 1, 2)).swapaxes(1, 2)  # Ys p1 = p2
         Xs = np.eye(n) - Ys
-        cond = np.linalg.cond(Xs)
-        jumped = (np.abs(innovation) >= eps).any(axis=1) & np.isfinite(Xs).all(axis=(1, 2))
+        finite = np.isfinite(Xs).all(axis=(1, 2))  # not where a run has diverged (its SVD would raise, for the batch)
+        cond = np.full(len(Xs), np.inf)
+        cond[finite] = np.linalg.cond(Xs[finite]) if finite.any() else []
+        jumped = (np.abs(innovation) >= eps).any(axis=1) & finite
         jumped &= ~np.asarray(check) | (cond <= c_max)
         j = np.flatnonzero(jumped)
         if j.size:
