@@ -194,7 +194,7 @@ class TableSpec(BaseModel):
     model_config = STRICT
     title: str
     metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
-    metrics: list[str] | None = Field(None, description="several metric names as columns (overrides metric)")
+    metrics: list[str] | None = Field(None, min_length=1, description="several metric names as columns (overrides metric)")
     signals: list[str] | None = Field(None, min_length=1, description="default: the signals of the tabulated metrics (z for j_tot)")
     paper: PaperValues | None = None
     relative: tuple[str, str] | None = Field(
@@ -362,7 +362,7 @@ class Experiment(BaseModel):
     seed: int = Field(2024, ge=0, description="root seed; run seeds derive from (seed, seed index)")
     seeds: int = Field(5, ge=1, le=10000, description="Monte-Carlo runs per variant")
     variants: list[Variant] = Field(..., min_length=1)
-    metrics: list[Metric] = Field(default_factory=lambda: [ErrorMetric()])
+    metrics: list[Metric] = Field(default_factory=lambda: [ErrorMetric()], min_length=1)
     table: TableSpec | None = None
     figures: list[FigureSpec] = Field(default_factory=list)
     engine: EngineOptions = Field(default_factory=EngineOptions)
@@ -465,7 +465,7 @@ class Experiment(BaseModel):
     def _check_study(self) -> Experiment:
         """A multi-scenario experiment: check the scenario references, then each part as a single experiment."""
         if not self.scenarios:
-            raise ValueError("'scenarios' is empty")
+            raise ValueError("scenarios: empty (name at least one world, or give scenario: instead)")
         have = ", ".join(self.scenarios)
         for i, v in enumerate(self.variants):
             unknown = set(v.scenarios or []) - set(self.scenarios)

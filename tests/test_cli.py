@@ -185,6 +185,9 @@ BAD = {
                      "table.signals: ['x'] are not recorded by the table's metrics (they record: r, sigma_r, sigma_u"),
     "table_relative_itself": (lambda d: d["table"].update(relative=["liu_eps0.2", "liu_eps0.2"]),
                               "table.relative: a variant against itself (liu_eps0.2)"),
+    # before, an empty metrics list passed and the run crashed after simulating (IndexError in the table)
+    "no_metrics": (lambda d: d.update(metrics=[]), "metrics: List should have at least 1 item"),
+    "table_no_metrics": (lambda d: d["table"].update(metrics=[]), "table.metrics: List should have at least 1 item"),
     "metric_no_signals": (lambda d: d["metrics"][0].update(signals=[]), "metrics.0.signals: List should have at least 1 item"),
     # claims that would hold or fail trivially, or say nothing
     "claim_same_variant": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": "liu_eps0.2", "text": "t"}]),
@@ -881,3 +884,10 @@ def test_liu_eso_gains_of_an_extreme_eps_do_not_overflow():
     design = json.loads(res.output)
     gains = next(iter(design.values()))["liu_eps0.2"]["gains"]
     assert gains == [pytest.approx(3e-300), 0.0, 0.0]
+
+
+def test_an_empty_study_names_its_key():
+    """Before, the line named '(top level)'."""
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set", "scenarios={}"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: scenarios: empty (name at least one world, or give scenario: instead)"), res.output
