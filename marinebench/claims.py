@@ -111,7 +111,7 @@ class NearPaperClaim(_Claim):
 
     kind: Literal["near_paper"] = "near_paper"
     factor: float = Field(2.0, gt=1)
-    variants: list[str] | None = None
+    variants: list[str] | None = Field(None, min_length=1, description="default: those with paper values")
 
     @property
     def variant_names(self) -> list[str]:

@@ -623,14 +623,24 @@ class Experiment(BaseModel):
         twice = sorted({v for v in self.sweep.variants or [] if self.sweep.variants.count(v) > 1})
         if twice:
             raise ValueError(f"sweep.variants: {twice} given more than once")
-        for i, c in enumerate(self.sweep.claims):  # two groups, or two variants (checked when swept side by side)
-            if c.metric is not None and c.metric not in self.sweep.shown:
-                raise ValueError(f"sweep.claims.{i}: metric '{c.metric}' is not among the sweep's metrics {self.sweep.shown}")
-            pair = [c.above, c.below] if c.kind == "groups" else None
-            if pair and not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
-                raise ValueError(f"sweep.claims.{i}: {pair} are neither two of the groups ({', '.join(self.sweep.groups)}) "
-                                 f"nor two variants ({', '.join(names)})")
         for metric in self.sweep.shown:
             if metric not in kinds:
                 key = "sweep.metrics" if self.sweep.metrics else "sweep.metric"
                 raise ValueError(f"{key}: '{metric}' is not among the experiment's metrics {kinds}")
+        self._check_sweep_claims(names)
+
+    def _check_sweep_claims(self, names: list[str]) -> None:
+        """Each sweep claim's metric is one the sweep shows, its signal one that metric records (before, another
+        left the claim out of claims.md), and a groups claim compares two groups or two variants."""
+        for i, c in enumerate(self.sweep.claims):
+            if c.metric is not None and c.metric not in self.sweep.shown:
+                raise ValueError(f"sweep.claims.{i}: metric '{c.metric}' is not among the sweep's metrics {self.sweep.shown}")
+            metric = c.metric or self.sweep.shown[0]
+            recorded = self.metric_signals(metric) or ["z"]
+            if c.signal is not None and c.signal not in recorded:
+                raise ValueError(f"sweep.claims.{i}.signal: '{c.signal}' is not recorded by metric '{metric}' (it records: "
+                                 f"{', '.join(recorded)})")
+            pair = [c.above, c.below] if c.kind == "groups" else None
+            if pair and not (set(pair) <= set(self.sweep.groups) or set(pair) <= set(names)):
+                raise ValueError(f"sweep.claims.{i}: {pair} are neither two of the groups ({', '.join(self.sweep.groups)}) "
+                                 f"nor two variants ({', '.join(names)})")

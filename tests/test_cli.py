@@ -194,6 +194,8 @@ BAD = {
                            "claims.0: names ['liu_eps0.2'] more than once: a claim compares different variants"),
     "claim_no_other": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": [], "text": "t"}]),
                        "claims.0.b: an empty list names no variant to compare with"),
+    "claim_near_no_variants": (lambda d: d.update(claims=[{"kind": "near_paper", "variants": [], "text": "t"}]),
+                               "claims.0.variants: List should have at least 1 item"),
     "claim_no_text": (lambda d: d.update(claims=[{"kind": "less", "a": "liu_eps0.2", "b": "proposed_d1.2", "text": ""}]),
                       "claims.0.text: String should have at least 1 character"),
     "sweep_claim_one_value": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
@@ -891,3 +893,14 @@ def test_an_empty_study_names_its_key():
     res = runner.invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set", "scenarios={}"])
     assert res.exit_code == 2 and res.output.strip() == (
         "error: --set: scenarios: empty (name at least one world, or give scenario: instead)"), res.output
+
+
+def test_a_sweep_claim_on_a_signal_its_metric_does_not_record_is_refused():
+    """Before, it validated, and the sweep left the claim out of claims.md without a word."""
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "torben_fig3.yaml"), "--set",
+                              "sweep.claims=[{kind: probe, param: k, at: 0.7, vs: 0, text: t, signal: psi}]"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: sweep.claims.0.signal: 'psi' is not recorded by metric 'J_tot' (it records: z)"), res.output
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "bejarano_fig7.yaml"), "--set",
+                              "sweep.claims.0.signal=sigma_v"])  # a signal its std records (v, sigma_v)
+    assert res.exit_code == 0, res.output
