@@ -179,7 +179,8 @@ class PaperValues(BaseModel):
         description="variant -> signal -> value of the table's (first) metric, shown beside ours; multi-scenario "
         "experiments: variant -> 'scenario/metric/signal' -> value",
     )
-    units: dict[str, str] = Field(default_factory=dict, description="'metric/signal' -> the unit the paper reports in")
+    units: dict[str, str] = Field(default_factory=dict, description="'metric/signal' (or a metric) -> the unit the paper "
+                                  "reports in, noted under the table")
 
 
 class Display(BaseModel):
@@ -383,9 +384,38 @@ class Experiment(BaseModel):
             raise ValueError("give exactly one of 'scenario' or 'scenarios'")
         self._fill_signals()
         self._fill_sweep()
-        if self.scenarios is not None:
-            return self._check_study()
-        return self._check_single()
+        checked = self._check_study() if self.scenarios is not None else self._check_single()
+        if self.table is not None:
+            self._check_table_keys()
+        return checked
+
+    def _check_table_keys(self) -> None:
+        """The table's 'metric/signal' keys (``display``, ``paper.units``) name a signal a metric records, and the
+        paper's values are keyed as the table looks them up (a signal of its first metric; in a study
+        'scenario/metric/signal'). Before, a misspelt key was ignored: a unit not applied, a paper value not shown."""
+        table = self.table
+        recorded = {m.label: set(self.metric_signals(m.label) or []) for m in self.metrics}
+        recorded.update({name: {"z"} for name in table.shown if name not in recorded})  # diagnostics: z
+
+        def names_a_signal(key: str) -> bool:
+            metric, _, signal = key.partition("/")
+            return signal in recorded.get(metric, ())
+
+        units = table.paper.units if table.paper else {}  # a note per key: of one metric's signal, or of a whole metric
+        for where, bad in (("table.display", [k for k in table.display if not names_a_signal(k)]),
+                           ("table.paper.units", [k for k in units if not (k in recorded or names_a_signal(k))])):
+            if bad:
+                raise ValueError(f"{where}: {bad} name no signal a metric records, as 'metric/signal' (e.g. "
+                                 f"{table.shown[0]}/{min(recorded[table.shown[0]])})")
+        for variant, values in (table.paper.values if table.paper else {}).items():
+            if self.scenarios is None:
+                bad = [k for k in values if k not in recorded[table.shown[0]]]
+                form = f"a signal of {table.shown[0]} ({', '.join(sorted(recorded[table.shown[0]]))})"
+            else:
+                bad = [k for k in values if k.partition("/")[0] not in self.scenarios or not names_a_signal(k.partition("/")[2])]
+                form = f"'scenario/metric/signal' (scenarios: {', '.join(self.scenarios)})"
+            if bad:
+                raise ValueError(f"table.paper.values: {variant}: {bad} are not keyed as the table reads them: {form}")
 
     def claim_metric(self, claim) -> str | None:
         if claim.metric is not None or self.table is None:

@@ -171,6 +171,11 @@ BAD = {
                       "table.metrics.1: 'rmse' is not among the metrics ['std']"),
     "paper_variant": (lambda d: d["table"]["paper"]["values"].update(nobody={"u": 1.0}),
                       "table.paper.values: unknown variants ['nobody'] (have: liu_eps0.2, proposed_d1.2)"),
+    # a misspelt key was ignored: a unit not applied, a paper value never shown
+    "table_display_key": (lambda d: d["table"].update(display={"std/x": {"scale": 100, "unit": "cm"}}),
+                          "table.display: ['std/x'] name no signal a metric records, as 'metric/signal' (e.g. std/r)"),
+    "paper_value_key": (lambda d: d["table"]["paper"]["values"].update({"liu_eps0.2": {"x": 1.0}}),
+                        "table.paper.values: liu_eps0.2: ['x'] are not keyed as the table reads them: a signal of std"),
     # before, the figure failed after the whole simulation, with a traceback (KeyError)
     "figure_signal": (lambda d: d["figures"][0].update(signals=["nope"]),
                       "figures: u.png: no trace of ['nope'] on this world (a figure may show: r, sigma_r, sigma_u, sigma_v, u, v)"),
@@ -904,3 +909,11 @@ def test_a_sweep_claim_on_a_signal_its_metric_does_not_record_is_refused():
     res = runner.invoke(app, ["validate", str(ROOT / "configs" / "bejarano_fig7.yaml"), "--set",
                               "sweep.claims.0.signal=sigma_v"])  # a signal its std records (v, sigma_v)
     assert res.exit_code == 0, res.output
+
+
+def test_a_studys_paper_values_are_keyed_by_scenario_metric_and_signal():
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"), "--set",
+                              "table.paper.values={rise: {S9/rmse/depth: 1}}"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: table.paper.values: rise: ['S9/rmse/depth'] are not keyed as the table reads them: "
+        "'scenario/metric/signal' (scenarios: S1, S2-C1, S2-C2, S3)"), res.output
