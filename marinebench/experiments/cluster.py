@@ -118,14 +118,14 @@ class LocalPool:
                 now = self.steps.value
                 progress(now - reported)
                 reported = now
-            for future in done:
-                try:
-                    value = future.result()
-                except Exception as exc:  # noqa: BLE001 -- whatever a chunk raised, or BrokenProcessPool
-                    for other in pending:
-                        other.cancel()
-                    raise ChunkFailed(futures[future], exc) from None
-                yield futures[future], value
+            failed = [f for f in done if f.exception() is not None]  # whatever a chunk raised, or BrokenProcessPool
+            for future in done.difference(failed):  # first: a chunk that finished beside a failed one is kept
+                yield futures[future], future.result()
+            if failed:
+                for other in pending:
+                    other.cancel()
+                first = min(failed, key=futures.__getitem__)
+                raise ChunkFailed(futures[first], first.exception())
 
     def close(self, abort: bool = False) -> None:
         """Shut the workers down; ``abort``: stop the chunks they are running instead of waiting for them."""
