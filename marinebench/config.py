@@ -394,8 +394,7 @@ class Experiment(BaseModel):
         paper's values are keyed as the table looks them up (a signal of its first metric; in a study
         'scenario/metric/signal'). Before, a misspelt key was ignored: a unit not applied, a paper value not shown."""
         table = self.table
-        recorded = {m.label: set(self.metric_signals(m.label) or []) for m in self.metrics}
-        recorded.update({name: {"z"} for name in table.shown if name not in recorded})  # diagnostics: z
+        recorded = {name: set(self.recorded_signals(name)) for name in [m.label for m in self.metrics] + table.shown}
 
         def names_a_signal(key: str) -> bool:
             metric, _, signal = key.partition("/")
@@ -432,6 +431,11 @@ class Experiment(BaseModel):
         if m is None:
             return None
         return list(m.signals or [])
+
+    def recorded_signals(self, label: str) -> list[str]:
+        """The signals a table, claim or sweep can show of metric ``label``: its own, or z for a per-run
+        diagnostic of the DP observers (``n_jumps``, ...) and anything else that is not a metric."""
+        return self.metric_signals(label) or ["z"]
 
     def claim_problem(self, claim) -> str | None:
         """Why a claim cannot be checked on this experiment (None: it can). Not a config error: overrides
@@ -592,7 +596,7 @@ class Experiment(BaseModel):
             if name not in kinds and name not in DIAGNOSTICS:
                 key = f"table.metrics.{i}" if self.table.metrics else "table.metric"
                 raise ValueError(f"{key}: '{name}' is not among the metrics {kinds}")
-        recorded = {s for name in self.table.shown for s in (self.metric_signals(name) or ["z"])}  # diagnostics: z
+        recorded = {s for name in self.table.shown for s in self.recorded_signals(name)}
         if unknown := [s for s in self.table.signals or [] if s not in recorded]:
             raise ValueError(f"table.signals: {unknown} are not recorded by the table's metrics (they record: "
                              f"{', '.join(sorted(recorded))})")
@@ -666,7 +670,7 @@ class Experiment(BaseModel):
             if c.metric is not None and c.metric not in self.sweep.shown:
                 raise ValueError(f"sweep.claims.{i}: metric '{c.metric}' is not among the sweep's metrics {self.sweep.shown}")
             metric = c.metric or self.sweep.shown[0]
-            recorded = self.metric_signals(metric) or ["z"]
+            recorded = self.recorded_signals(metric)
             if c.signal is not None and c.signal not in recorded:
                 raise ValueError(f"sweep.claims.{i}.signal: '{c.signal}' is not recorded by metric '{metric}' (it records: "
                                  f"{', '.join(recorded)})")

@@ -105,8 +105,8 @@ def sampled_radius(k_star, theta: float, k_w: float, h: float) -> float:
     """Spectral radius of the per-sample error map (the CDO converges iff < 1); ``inf`` where the map overflows
     (extreme theta, K_w or h)."""
     with np.errstate(over="ignore", invalid="ignore"):
-        F = sampled_flow(theta ** np.arange(1.0, 4.0) * np.asarray(k_star, dtype=float), k_w)
-        E = expm(F * h)[:3, :3] if np.isfinite(F * h).all() else np.full((3, 3), np.inf)
+        Fh = sampled_flow(theta ** np.arange(1.0, 4.0) * np.asarray(k_star, dtype=float), k_w) * h
+        E = expm(Fh)[:3, :3] if np.isfinite(Fh).all() else np.full((3, 3), np.inf)
     return float(np.abs(np.linalg.eigvals(E)).max()) if np.isfinite(E).all() else float("inf")
 
 
