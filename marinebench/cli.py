@@ -395,8 +395,11 @@ def sweep(
     with one_line_errors():
         params, inline = inline_params(params or [])
     overrides = [arg for arg, _ in inline.values()] + overrides  # a parameter given in place names the folder, as --set does
-    base, exp, params = _sweep_experiment(config, params, set_ or [], seed, seeds, variants, groups, n, horizon, grid,
+    sets, unchecked = _claims_in_range(config, set_ or [], inline)
+    base, exp, params = _sweep_experiment(config, params, sets, seed, seeds, variants, groups, n, horizon, grid,
                                           overrides, inline)
+    for note in [] if quiet else unchecked:
+        err.print(f"note: {config}: {note}", markup=False)
     target = (out_dir if out_dir is not None else Path("results")) / (
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     known = _up_to_date(exp, target, quiet) if resume else None
@@ -422,6 +425,24 @@ def sweep(
                   f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
                   f"-> {target}", markup=False)
     _claims_verdict(require_claims, sum(c.fails for c in claims))
+
+
+def _claims_in_range(config: Path, sets: list[str], inline: dict[str, tuple[str, str]]) -> tuple[list[str], list[str]]:
+    """sweep: ``sets``, plus one leaving out the config's sweep claims about a parameter given in place at values
+    outside its new range (:func:`~marinebench.experiments.sweep.claims_beyond`), and a note on each left out. A
+    config that cannot be read is left to the loading that follows to report."""
+    from marinebench.experiments.sweep import claims_beyond
+    from marinebench.loading import resolve_document
+
+    if not inline:
+        return sets, []
+    try:
+        doc, _ = resolve_document(config, sets)
+    except MarinebenchError:
+        return sets, []
+    claims = doc.get("sweep", {}).get("claims") if isinstance(doc.get("sweep"), dict) else None
+    kept, notes = claims_beyond(claims, inline)
+    return ([*sets, f"sweep.claims={json.dumps(kept)}"] if notes else sets), notes
 
 
 def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: int | None, seeds: int | None,

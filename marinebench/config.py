@@ -267,8 +267,9 @@ class SweepParam(BaseModel):
     @model_validator(mode="after")
     def _range(self) -> SweepParam:
         lo, hi = self.range
-        if lo > hi or (self.spacing == "log" and lo <= 0):
-            raise ValueError(f"bad range {self.range} for {self.spacing} spacing")
+        if lo >= hi or (self.spacing == "log" and lo <= 0):  # equal ends: n points at one value, no curve
+            raise ValueError(f"bad range {self.range} for {self.spacing} spacing (from a lower to a higher value"
+                             f"{', both positive' if self.spacing == 'log' else ''})")
         outside = [v for v in [*self.probes, *(self.trend or ())] if not lo <= v <= hi]
         if outside:
             raise ValueError(f"probe/trend values {outside} outside the range {self.range}")

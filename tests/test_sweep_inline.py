@@ -59,6 +59,8 @@ def test_a_config_without_a_sweep_section_sweeps_a_parameter_given_in_place(tiny
 @pytest.mark.parametrize(("arg", "expected"), [
     ("eps=0.4..0.1", "error: eps=0.4..0.1: bad range (0.4, 0.1) for linear spacing"),
     ("eps=0..1:log", "error: eps=0..1:log: bad range (0.0, 1.0) for log spacing"),
+    # equal ends: before, n runs at one value, then a traceback (pandas' pivot) after simulating them
+    ("eps=0.2..0.2", "error: eps=0.2..0.2: bad range (0.2, 0.2) for linear spacing (from a lower to a higher value)"),
     ("nosuch=0.1..1", "error: nosuch=0.1..1: 'nosuch' is not a setting of variant 'liu_eps0.2'"),
 ])
 def test_an_error_in_a_parameter_given_in_place_names_the_argument(tiny_config, tmp_path, arg, expected):
@@ -119,3 +121,38 @@ def test_a_parameter_given_in_place_over_one_of_the_section_names_the_folder_onc
     assert sweep_suffix(exp, ["eps"], overrides=["eps=0.2..0.3"]) == "_sweep_eps=0.2..0.3_2seeds"
     assert sweep_suffix(exp, ["eps"], overrides=["seed=3"]) == "_sweep_eps_seed=3_2seeds"
     assert sweep_suffix(exp, ["eps"], overrides=["world.position_noise_scale=0..2"]) == "_sweep_eps_world.position_noise_scale=0..2_2seeds"
+
+
+CLAIMS = ("sweep={params: {eps: {key: eps, range: [0.1, 0.4]}}, claims: ["
+          "{kind: probe, param: eps, at: 0.1, vs: 0.4, factor: 10, text: at both ends}, "
+          "{kind: trend, param: eps, range: [0.2, 0.3], text: inside}, "
+          "{kind: trend, param: eps, range: [0.1, 0.2], text: a low trend}]}")
+
+
+def test_claims_outside_the_range_given_in_place_are_left_out_with_a_note(tiny_config, tmp_path):
+    """Narrowing a parameter of the section in place (zooming in) leaves its claims at values outside the new range
+    unchecked, each with a note; before, the sweep was refused (the claim's values outside the range)."""
+    res = runner.invoke(app, ["sweep", "--config", str(tiny_config), "eps=0.15..0.35", "--n", "3", "--set", CLAIMS,
+                              "--out", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    notes = [line for line in res.output.splitlines() if line.startswith("note:")]
+    assert notes == [f"note: {tiny_config}: sweep.claims.0 is not checked ('at both ends'): 0.1, 0.4 outside eps=0.15..0.35",
+                     f"note: {tiny_config}: sweep.claims.2 is not checked ('a low trend'): 0.1 outside eps=0.15..0.35"]
+    (folder,) = (tmp_path / "out").iterdir()
+    spec = yaml.safe_load((folder / "config.resolved.yaml").read_text())["sweep"]
+    assert [c["text"] for c in spec["claims"]] == ["inside"]
+    assert "| inside |" in (folder / "claims.md").read_text()
+
+
+def test_claims_beyond_keeps_claims_inside_and_about_other_parameters():
+    from marinebench.experiments.sweep import claims_beyond
+
+    _, inline = inline_params(["k=0.5..1"])
+    claims = [{"kind": "probe", "param": "k", "at": 0.7, "vs": 0.0, "text": "a"},
+              {"kind": "probe", "param": "k", "at": 0.7, "vs": 0.9, "text": "b"},
+              {"kind": "trend", "param": "delta", "range": [2.5, 10.0], "text": "c"},
+              {"kind": "groups", "param": "k", "above": "x", "below": "y", "text": "d"}]
+    kept, notes = claims_beyond(claims, inline)
+    assert [c["text"] for c in kept] == ["b", "c", "d"]
+    assert notes == ["sweep.claims.0 is not checked ('a'): 0 outside k=0.5..1"]
+    assert claims_beyond(claims, {}) == (claims, [])

@@ -104,6 +104,32 @@ def inline_params(args: Sequence[str]) -> tuple[list[str], dict[str, tuple[str, 
     return names, sets
 
 
+def claims_beyond(claims: Any, inline: dict[str, tuple[str, str]]) -> tuple[list, list[str]]:
+    """A parameter given in place over a narrower range than the config's (``k=0.5..1`` on Torben's Fig. 3, whose
+    claim compares k = 0.7 with k = 0) leaves the config's ``sweep.claims`` about it at values outside that range
+    unchecked: ``claims`` (the document's, as written) without them, and a note on each one left out. Claims whose
+    values lie inside the new range, and those about other parameters, stay as they are."""
+    kept, notes = [], []
+    for i, claim in enumerate(claims if isinstance(claims, list) else []):
+        given = inline.get(f"sweep.params.{claim.get('param')}") if isinstance(claim, dict) else None
+        values = _claim_values(claim) if given else []
+        lo, hi = json.loads(given[1])["range"] if given else (0, 0)
+        outside = [v for v in values if isinstance(v, (int, float)) and not lo <= v <= hi]
+        if outside:
+            notes.append(f"sweep.claims.{i} is not checked ('{claim.get('text', '')}'): "
+                         f"{', '.join(f'{v:g}' for v in outside)} outside {given[0]}")
+        else:
+            kept.append(claim)
+    return kept, notes
+
+
+def _claim_values(claim: dict) -> list:
+    """The parameter values a sweep claim (as written) is about: a probe's ``at`` and ``vs``, a trend's range."""
+    values = [claim.get("at"), claim.get("vs")] if claim.get("kind") == "probe" else (
+        list(claim.get("range") or []) if claim.get("kind") == "trend" else [])
+    return [v for v in values if v is not None]
+
+
 def override_tags(overrides: Sequence[str], limit: int = 60) -> list[str]:
     """Folder-name tags of command-line overrides, one per ``key=value`` as given, lists as their
     comma-separated items (``scenario.sensors.gm_time_constant=100``, ``seed=7``,
