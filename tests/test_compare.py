@@ -701,3 +701,25 @@ def test_the_default_tolerance_is_two_percent_of_the_baseline(tmp_path, base_val
     for factor, code in ((1.019, 0), (1.021, 1)):
         write_result(tmp_path / str(factor), "exp", {k: v * factor for k, v in base_values.items()})
         assert runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / str(factor))]).exit_code == code
+
+
+def test_the_tree_is_read_past_temporary_and_vanishing_folders(tmp_path, base_values, monkeypatch):
+    """A ``run`` writing into the tree compared: its dot-folder (the write under way) is not looked into, and a folder
+    that vanishes while the tree is listed (renamed into place) is passed over; before, ``rglob`` raised
+    FileNotFoundError (a traceback) when it did."""
+    import os
+
+    from marinebench.results import compare
+
+    write_result(tmp_path / "tree", "exp", base_values)
+    write_result(tmp_path / "tree" / ".exp2.tmp-host-1-2", "exp", base_values)  # the same name: would be 'twice'
+    (tmp_path / "tree" / "gone").mkdir()
+    real = os.scandir
+
+    def vanishing(path="."):
+        if Path(path).name == "gone":
+            raise FileNotFoundError(2, "No such file or directory", str(path))
+        return real(path)
+
+    monkeypatch.setattr(os, "scandir", vanishing)
+    assert compare.find_results(tmp_path / "tree") == {"exp": tmp_path / "tree" / "exp"}

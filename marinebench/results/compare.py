@@ -21,6 +21,7 @@ noise both sides share), and only the root seed may differ between the worlds.
 
 from __future__ import annotations
 
+import os
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -60,10 +61,8 @@ def find_results(root: Path) -> dict[str, Path]:
     if not root.exists():
         raise CompareInputError(f"{root}: no such directory")
     found: dict[str, Path] = {}
-    for csv in sorted(root.rglob("metrics.csv")):
+    for csv in _metrics_files(root):
         d = csv.parent
-        if any(part.startswith(".") for part in d.relative_to(root).parts):
-            continue  # temporary directories of an interrupted write
         first = read_metrics(csv, usecols=["experiment"], nrows=1)
         if first.empty:
             raise CompareInputError(f"{csv}: no rows")
@@ -74,6 +73,17 @@ def find_results(root: Path) -> dict[str, Path]:
     if not found:
         raise CompareInputError(f"{root}: no metrics.csv found")
     return found
+
+
+def _metrics_files(root: Path) -> list[Path]:
+    """Every ``metrics.csv`` under ``root``, in sorted order, not looking into dot-folders (the temporary folders of a
+    write under way or interrupted). A folder that cannot be listed, or vanishes while the tree is read (a
+    ``run`` renaming its finished temporary folder into place), is passed over, not a traceback."""
+    files = []
+    for folder, subfolders, names in os.walk(root):
+        subfolders[:] = [s for s in subfolders if not s.startswith(".")]
+        files += [Path(folder) / "metrics.csv"] if "metrics.csv" in names else []
+    return sorted(files)
 
 
 def load_metrics(dirs: dict[str, Path]) -> pd.DataFrame:
