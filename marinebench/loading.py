@@ -96,7 +96,9 @@ def _split_path(key: str) -> list[str | tuple[str]]:
     parts: list[str | tuple[str]] = []
     pos = 0
     for m in _TOKEN.finditer(key):
-        if m.start() != pos and key[pos:m.start()] != ".":
+        sep = key[pos:m.start()]  # the first part starts the key; a name after it follows a dot, a [name] may
+        allowed = ("",) if not parts else (".",) if m.group(1) is not None else ("", ".")
+        if sep not in allowed:
             raise ValueError(f"malformed key '{key}'")
         parts.append(m.group(1) if m.group(1) is not None else (m.group(2),))
         pos = m.end()

@@ -244,6 +244,16 @@ def test_apply_set_paths():
     assert doc["scenario"]["dt"] == 1e-3 and doc["variants"][0]["observer"]["eps"] == 5e6
     apply_set(doc, "variants.0.name=1e5x")
     assert doc["variants"][0]["name"] == "1e5x"
+    assert apply_set(doc, "variants.[1e5x].observer.eps=2") == ["variants.0.observer.eps"]  # a dot before [name] too
+
+
+@pytest.mark.parametrize("key", [".seeds", "seeds.", "a..b", "variants[c]observer", "variants[]", "variants[c"])
+def test_a_malformed_key_is_refused(key):
+    """Before, a leading dot was read past (``.seeds=3`` set seeds) while ``a..b`` was refused."""
+    doc = {"seeds": 1, "variants": [{"name": "c", "observer": {"eps": 1}}]}
+    with pytest.raises(ConfigError, match="malformed key"):
+        apply_set(doc, f"{key}=3")
+    assert doc == {"seeds": 1, "variants": [{"name": "c", "observer": {"eps": 1}}]}
 
 
 def test_apply_set_star_stands_for_every_key_or_item():
