@@ -148,11 +148,16 @@ def _run_and_write(path: Path, exp, origins, target: Path, progress=None, on_sta
         write_run(result, target, origins, claims)
     except OSError as exc:  # e.g. the disk filled up: the previous results stay, nothing half-written
         raise MarinebenchError(f"{target}: cannot write results ({exc.strerror or exc})") from None
-    n_div = int((result.metrics["status"] != "ok").sum())
-    warning = f"warning: {exp.name}: {n_div} metric values from diverged runs excluded" if n_div else None
+    warning = _diverged_warning(exp.name, result.metrics)
     checked = f", {summary_line(claims)}" if claims else ""
     line = f"{exp.name}: {len(result.run_seed)} runs in {result.wall_time:.1f} s{checked} -> {target}"
     return line, warning, sum(c.fails for c in claims)
+
+
+def _diverged_warning(name: str, metrics) -> str | None:
+    """The warning that some runs diverged (their metric values are excluded from means, tables and claims)."""
+    n_div = int((metrics["status"] != "ok").sum())
+    return f"warning: {name}: {n_div} metric values from diverged runs excluded" if n_div else None
 
 
 def _run_in_worker(path: Path, exp, origins, target: Path, progress=None) -> tuple[str | None, str | None, int, str | None]:
@@ -418,6 +423,8 @@ def sweep(
     except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
         fail(f"{target}: cannot write results ({exc.strerror or exc})")
     discard_partial(target)
+    if warning := _diverged_warning(target.name, metrics):
+        err.print(warning + " (table.md: the diverged column)", markup=False)
     if not quiet:
         checked = (f", {summary_line(claims)}" if claims else
                    f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")

@@ -201,3 +201,46 @@ def test_the_heat_map_stars_the_lowest_point_and_crosses_the_variants_tuning(mon
     panels = [ax for ax in figures[2].axes if ax.get_title()]
     assert [ax.get_title() for ax in panels] == ["J_tot: resetting", "J_tot: resetting, x", "J_tot: npo", "J_tot: npo, x"]
     assert [[line.get_marker() for line in ax.get_lines()] for ax in panels] == [["*", "x"], ["*", "x"], ["*"], ["*"]]
+
+
+@pytest.mark.parametrize("grid", [False, True])
+def test_a_group_whose_every_run_diverges_fails_its_claims_and_is_said_once(tmp_path, grid):
+    """Differential GNSS noise of 1e300 m makes every run of that group diverge. Before, its groups claim
+    raised ValueError (numpy's nanargmin on an all-NaN curve) after simulating; now the claims on it fail, the
+    command warns once, as `run` does, and numpy's all-NaN RuntimeWarnings stay off the terminal; the heat map
+    says so across the empty panel, with no legend (c_ε has no own value to cross: before, matplotlib warned of
+    a legend without entries)."""
+    import warnings
+
+    from marinebench.experiments import grid as grid_module
+
+    args = ["sweep", *(["k", "eps", "--grid"] if grid else ["k"]), "--config", str(CFG), "--n", "2", "--horizon", "20",
+            "--out", str(tmp_path), "--quiet", "--set", "sweep.groups.dgnss.gnss_sigma=1e300"]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert [str(w.message) for w in caught if w.category in (RuntimeWarning, UserWarning)] == []
+    (d,) = tmp_path.iterdir()
+    m = pd.read_csv(d / "metrics.csv")
+    diverged = m["status"] == "diverged"
+    assert set(m.loc[diverged, "gnss"]) == {"dgnss"} and diverged[(m["gnss"] == "dgnss") & (m["metric"] == "J_tot")].all()
+    warning = f"warning: {d.name}: {diverged.sum()} metric values from diverged runs excluded (table.md: the diverged column)"
+    assert res.output.strip().splitlines() == [warning]
+    claims = (d / "claims.md").read_text()
+    if grid:
+        assert "## Claims along the grid" in claims
+    else:
+        assert "| 2 | **fails** | dual-band GNSS above differential at every k |" in claims
+        assert "| 2 | dualband / dgnss | z | dualband at k=0 " in claims and ", dgnss – | – | > 1 at every value | **fails** |" in claims
+    if grid:
+        exp, _ = load_experiment(CFG)
+        figures = []
+        monkeypatch = pytest.MonkeyPatch()
+        monkeypatch.setattr(grid_module.plt, "close", figures.append)
+        try:
+            grid_module.grid_figure(m, ["J_tot"], exp, tmp_path / "again.png")
+        finally:
+            monkeypatch.undo()
+        empty = next(ax for ax in figures[0].axes if ax.get_title() == "J_tot: dgnss")
+        assert [t.get_text() for t in empty.texts] == ["every run diverged"] and empty.get_legend() is None

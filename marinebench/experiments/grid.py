@@ -123,23 +123,33 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
                                  values, cmap="viridis", norm=norm)
             bar = fig.colorbar(mesh, ax=ax, label=metric)
             plain_log_labels(bar.ax.yaxis)
-            if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):  # a flat surface has no lowest point
-                i, j = np.unravel_index(np.nanargmin(values), values.shape)
-                ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
             variant = g.split("/")[0] if several else exp.sweep.variant
-            if None not in own[variant]:
-                y, x = own[variant]
-                ax.plot(x, y, "x", color="red", ms=9, mew=2, label=f"{variant} ({y:g}, {x:g})")
+            _mark(ax, m, variant, own[variant])
             for axis, p in (("x", p2), ("y", p1)):
                 if exp.sweep.params[p].spacing == "log":
                     getattr(ax, f"set_{axis}scale")("log")
                     plain_log_labels(getattr(ax, f"{axis}axis"))
                 getattr(ax, f"set_{axis}label")(exp.sweep.params[p].label or p)
             ax.set_title(f"{metric}: {g}" + (f", {sig}" if sig != "z" else ""), fontsize=9)
-            ax.legend(fontsize=7, loc="best")
     n_seeds = int(metrics["seed"].nunique())
     save(fig, f"{exp.name}: {', '.join(shown)} over {p1} × {p2}" + (f" (mean of {n_seeds} seeds)" if n_seeds > 1 else "")
          + f"\nmodel {exp.model_label()}", path)
+
+
+def _mark(ax, m: pd.DataFrame, variant: str, own: tuple) -> None:
+    """A heat map's marks: its lowest point starred (none on a flat surface), ``variant``'s own tuning ``own`` (p1, p2)
+    crossed (none for a parameter without one), and 'every run diverged' across a surface without a value."""
+    values = m.to_numpy(dtype=float)
+    if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):
+        i, j = np.unravel_index(np.nanargmin(values), values.shape)
+        ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
+    if None not in own:
+        y, x = own
+        ax.plot(x, y, "x", color="red", ms=9, mew=2, label=f"{variant} ({y:g}, {x:g})")
+    if not np.isfinite(values).any():
+        ax.text(0.5, 0.5, "every run diverged", transform=ax.transAxes, ha="center", va="center")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7, loc="best")
 
 
 @dataclass

@@ -536,11 +536,13 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     def curve(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # the ratio of the mean curves, point by point
         return np.nanmean(x, axis=0) / np.nanmean(y, axis=0)
 
-    def lowest(x: np.ndarray, y: np.ndarray) -> float:
-        return float(np.nanmin(curve(x, y)))
+    def lowest(x: np.ndarray, y: np.ndarray) -> float:  # nan (the check fails) where every run diverged
+        r = curve(x, y)
+        return float(np.nanmin(r)) if not np.isnan(r).all() else np.nan
 
     ratios = curve(a, b)
-    ratio, at = float(np.nanmin(ratios)), float(above.index[int(np.nanargmin(ratios))])
+    i = int(np.nanargmin(ratios)) if not np.isnan(ratios).all() else 0
+    ratio, at = float(ratios[i]), float(above.index[i])
     means = {f"{above_name} at {claim.param}={at:.3g}": float(above.loc[at].mean()), below_name: float(below.loc[at].mean())}
     region = Region(1 / claim.factor, np.inf)
     return Check(f"{above_name} / {below_name}", sig, means, ratio, bootstrap_ci([a, b], lowest, scale="log"),

@@ -2,10 +2,22 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 
 import numpy as np
 from scipy import stats
+
+
+@contextmanager
+def diverged_runs_quiet() -> Iterator[None]:
+    """numpy's nan-reductions (``nanmean``, ``nanmin``, ...) over the runs of a point where every one diverged give
+    nan, shown as '–' (and a claim checked on it fails), without their RuntimeWarning on the terminal."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "Mean of empty slice|All-NaN slice encountered", RuntimeWarning)
+        yield
 
 
 @lru_cache(maxsize=256)

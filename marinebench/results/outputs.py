@@ -18,6 +18,7 @@ from marinebench.experiments.grid import (
 from marinebench.experiments.runner import RunResult, summarise
 from marinebench.experiments.settings import tuning
 from marinebench.experiments.sweep import as_swept, sweep_claims, sweep_figure, sweep_table
+from marinebench.metrics.stats import diverged_runs_quiet
 from marinebench.plotting.figures import timeseries, tracking
 from marinebench.provenance import inputs_key
 from marinebench.results.claims import ClaimResult, manifest_entries
@@ -174,10 +175,11 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
     batches, executor, times). Returns the checked claims and the claims mapped over a grid."""
     shown = base.sweep.shown
     metrics = as_written(metrics)
-    claims = [] if grid else sweep_claims(metrics, base.sweep)
-    mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
+    with diverged_runs_quiet():  # the table shows '–' where every run of a point diverged; a claim there fails
+        claims = [] if grid else sweep_claims(metrics, base.sweep)
+        mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
     table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
-    with atomic_directory(target) as tmp:
+    with atomic_directory(target) as tmp, diverged_runs_quiet():
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)))
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
