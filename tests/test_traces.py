@@ -135,3 +135,27 @@ def test_figures_without_traces_or_with_a_variant_the_config_lost_is_one_line(ti
     assert {p.name: p.read_bytes() for p in (folder / "figures").iterdir()} == before  # nothing half-drawn
     res = CliRunner().invoke(app, ["figures", str(tmp_path / "nope")])
     assert res.exit_code == 2 and res.output.strip() == f"error: {tmp_path / 'nope'}: no such directory"
+
+
+@pytest.mark.parametrize(("edit", "expected"), [
+    ({"signals": ["sigma_r", "nosuch"]}, "no trace of ['nosuch']"),
+    ({"signals": ["r"], "variants": ["added"]}, "no seed-0 run of variants ['added']"),
+    ({"kind": "tracking", "signals": ["r"]}, "no trace of ['tau_r']"),
+])
+def test_figures_of_a_signal_or_variant_the_traces_lack_is_one_line(tiny_config, tmp_path, edit, expected):
+    """An edited figure that asks for a signal never traced, a tracking layout on an observer run (no control
+    input to draw), or a variant added to the config after the run. Before, a traceback (KeyError,
+    IndexError); now one line naming the figure, and the figures drawn before stay as they were."""
+    import yaml
+
+    folder = _run_with_traces(tiny_config, tmp_path)
+    doc = yaml.safe_load((folder / "config.resolved.yaml").read_text())
+    doc["variants"].append({**doc["variants"][0], "name": "added"})
+    doc["figures"] = [{"file": "edited.png", **edit}]
+    (folder / "config.resolved.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    before = {p.name: p.read_bytes() for p in (folder / "figures").iterdir()}
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+    assert res.output.startswith(f"error: {folder / 'config.resolved.yaml'}: figures: edited.png: {expected} in {FILE} "
+                                 "(it holds signals "), res.output
+    assert {p.name: p.read_bytes() for p in (folder / "figures").iterdir()} == before

@@ -53,6 +53,14 @@ def plain_log_labels(axis) -> None:
     axis.set_minor_formatter(PlainLog(labelOnlyBase=False))
 
 
+def traces_needed(spec: FigureSpec) -> tuple[list[str], list[str]]:
+    """The traced signals a figure draws: those it needs a truth of, and those it needs an estimate of (a tracking
+    figure's reference is its estimate row, and it draws the control input ``tau_<signal>``)."""
+    if spec.kind == "tracking":
+        return [*spec.signals, *(f"tau_{s}" for s in spec.signals)], list(spec.signals)
+    return list(spec.signals), []
+
+
 def seed0_runs(exp: Experiment, spec: FigureSpec, run_variant, run_seed) -> tuple[list[str], dict[str, str], list[int]]:
     """The figure's variant names, their legend labels, and the batch index of each one's seed-0 run."""
     names = spec.variants or [v.name for v in exp.variants]

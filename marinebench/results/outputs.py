@@ -160,8 +160,28 @@ def redraw_figures(folder: Path) -> list[str]:
                 traced = traced_arrays(frame, part)
             except ValueError as exc:
                 raise MarinebenchError(f"{folder / TRACES_FILE}: {exc}") from None
+            _check_traced(folder, part, traced)
             draw_figures(part, traced, figdir)
     return [spec.file for name in exp.scenario_names for spec in exp.part(name).figures]
+
+
+def _check_traced(folder: Path, part, traced: tuple) -> None:
+    """Each edited figure draws only what ``traces.csv.gz`` holds: its signals (a truth, and an estimate where the
+    figure needs one) and seed 0 of each of its variants. Before, another signal or a variant added to the config
+    after the run was a traceback (KeyError, IndexError)."""
+    from marinebench.errors import MarinebenchError
+    from marinebench.plotting.figures import traces_needed
+
+    _, truth, est, run_variant, run_seed = traced
+    traced_names = {part.variants[i].name for i, s in zip(run_variant, run_seed) if s == 0}
+    for spec in part.figures:
+        need_truth, need_est = traces_needed(spec)
+        missing = [s for s in need_truth if s not in truth] + [f"{s} (estimate)" for s in need_est if s not in est]
+        untraced = [v for v in spec.variants or [v.name for v in part.variants] if v not in traced_names]
+        if missing or untraced:
+            what = f"no trace of {missing}" if missing else f"no seed-0 run of variants {untraced}"
+            raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: figures: {spec.file}: {what} in {TRACES_FILE} "
+                                   f"(it holds signals {', '.join(sorted(truth))}; variants {', '.join(sorted(traced_names))})")
 
 
 def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, params: list[str], grid: bool,
