@@ -159,3 +159,32 @@ def test_figures_of_a_signal_or_variant_the_traces_lack_is_one_line(tiny_config,
     assert res.output.startswith(f"error: {folder / 'config.resolved.yaml'}: figures: edited.png: {expected} in {FILE} "
                                  "(it holds signals "), res.output
     assert {p.name: p.read_bytes() for p in (folder / "figures").iterdir()} == before
+
+
+def test_a_damaged_traces_file_is_one_line_naming_it(tiny_config, tmp_path):
+    """Before, each of these was a traceback from gzip or pandas (BadGzipFile, EmptyDataError, KeyError), and a
+    gzip cut short printed only 'Aborted!' (its EOFError read as Ctrl-D by the command line), exit code 1."""
+    import gzip
+
+    folder = _run_with_traces(tiny_config, tmp_path)
+    good = gzip.decompress((folder / FILE).read_bytes()).decode()
+    header, first = good.splitlines()[:2]
+    cases = {
+        (folder / FILE).read_bytes()[:300]: "not a readable CSV (Compressed file ended before the end-of-stream marker",
+        b"plain text": "not a readable CSV (Not a gzipped file",
+        gzip.compress(b""): "not a readable CSV (No columns to parse from file)",
+        gzip.compress(f"{header}\n".encode()): "no rows",
+        gzip.compress(b"scenario,variant,seed,signal,truth,estimate\ns,a,0,u,1,1\n"): "missing column(s) ['t']; is this a "
+                                                                                   "marinebench traces.csv.gz?",
+        gzip.compress(f"{header}\n{first}\n{first.replace(',0,', ',x,', 1)}\n".encode()): "column 'seed' is not numeric",
+        gzip.compress(good[: len(good) // 2].encode()): ": a row without its scenario, variant, seed, t, signal",
+        # cut at a line's end: every row whole, the last runs' signals missing (before: KeyError)
+        gzip.compress(good[: good.index("\n", len(good) // 2) + 1].encode()): "' for variant proposed_d1.2, seed 0 (a "
+                                                                              "truncated file?)",
+    }
+    for content, expected in cases.items():
+        (folder / FILE).write_bytes(content)
+        res = CliRunner().invoke(app, ["figures", str(folder)])
+        lines = res.output.strip().splitlines()
+        assert res.exit_code == 2 and len(lines) == 1, res.output
+        assert lines[0].startswith(f"error: {folder / FILE}: ") and expected in lines[0], lines[0]

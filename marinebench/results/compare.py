@@ -64,8 +64,6 @@ def find_results(root: Path) -> dict[str, Path]:
     for csv in _metrics_files(root):
         d = csv.parent
         first = read_metrics(csv, usecols=["experiment"], nrows=1)
-        if first.empty:
-            raise CompareInputError(f"{csv}: no rows")
         name = first["experiment"].iloc[0]
         if name in found:
             raise CompareInputError(f"{root}: experiment '{name}' appears twice ({found[name]} and {d})")

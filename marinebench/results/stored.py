@@ -42,25 +42,38 @@ def read_tidy(path: Path, nrows: int | None = None) -> pd.DataFrame:
                        na_values={c: MISSING for c in columns if c not in NAME_COLUMNS})
 
 
-def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None = None) -> pd.DataFrame:
-    """A ``metrics.csv`` with at least :data:`METRICS_COLUMNS` (or ``usecols``) and numeric ``seed``/``value``."""
-    need = usecols or METRICS_COLUMNS
+def read_columns(path: Path, need: list[str], numeric: tuple[str, ...], nrows: int | None = None) -> pd.DataFrame:
+    """A tidy CSV (:func:`read_tidy`; gzipped by its name's ``.gz``) with at least the columns ``need``, those of
+    them in ``numeric`` numbers; else one line naming the file."""
     try:
         df = read_tidy(path, nrows=nrows)
-    except (OSError, ValueError, pd.errors.ParserError) as exc:  # EmptyDataError and decoding errors are ValueErrors
+    except (OSError, EOFError, ValueError, pd.errors.ParserError) as exc:  # EmptyDataError and decoding errors are
+        # ValueErrors; a gzip cut short is an EOFError (which the command line would take for Ctrl-D), a bad one an OSError
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise StoredResultError(f"{path}: not a readable CSV ({first})") from None
     missing = [c for c in need if c not in df.columns]
     if missing:
-        raise StoredResultError(f"{path}: missing column(s) {missing}; is this a marinebench metrics.csv?")
-    for col in ("seed", "value"):
+        raise StoredResultError(f"{path}: missing column(s) {missing}; is this a marinebench {Path(path).name}?")
+    if df.empty:
+        raise StoredResultError(f"{path}: no rows")
+    for col in numeric:
         if col in need and not pd.api.types.is_numeric_dtype(df[col]):
             raise StoredResultError(f"{path}: column '{col}' is not numeric")
+    return df
+
+
+def require_keys(df: pd.DataFrame, keys: list[str], path: Path) -> None:
+    """Every row of a tidy file has its ``keys`` (neither blank nor NaN): a file cut short mid-row is one line."""
+    if (blank := df[keys].isna().any(axis=1) | df[keys].eq("").any(axis=1)).any():
+        raise StoredResultError(f"{path}: line {int(blank.to_numpy().argmax()) + 2}: a row without its "
+                                f"{', '.join(keys)} (a truncated file?)")
+
+
+def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None = None) -> pd.DataFrame:
+    """A ``metrics.csv`` with at least :data:`METRICS_COLUMNS` (or ``usecols``) and numeric ``seed``/``value``."""
+    df = read_columns(path, usecols or METRICS_COLUMNS, ("seed", "value"), nrows)
     if usecols is None:  # one value per cell and seed, or the paired comparison has nothing to pair
-        keys = df[METRICS_COLUMNS[:-1]]  # a value may be nan (a diverged run), a key may not
-        if (blank := keys.isna().any(axis=1) | keys.eq("").any(axis=1)).any():
-            raise StoredResultError(f"{path}: line {int(blank.to_numpy().argmax()) + 2}: a row without its "
-                                    f"{', '.join(METRICS_COLUMNS[:-1])} (a truncated file?)")
+        require_keys(df, METRICS_COLUMNS[:-1], path)  # a value may be nan (a diverged run), a key may not
         twice = df[df.duplicated(METRICS_COLUMNS[:-1], keep=False)]
         if len(twice):
             first = ", ".join(f"{k}={twice.iloc[0][k]}" for k in METRICS_COLUMNS[:-1])

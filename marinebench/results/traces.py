@@ -79,15 +79,21 @@ def write_traces(result: RunResult, path: Path) -> None:
 
 
 def read_traces(path: Path) -> pd.DataFrame:
-    """A written ``traces.csv.gz`` as the DataFrame :func:`trace_frame` gave."""
-    return pd.read_csv(path, keep_default_na=False, na_values=[""])
+    """A written ``traces.csv.gz`` as the DataFrame :func:`trace_frame` gave (names as text: a variant may be named
+    "1e3"); a damaged or foreign file (not gzip, cut short, columns missing or not numbers, a row without its keys)
+    is a :class:`~marinebench.results.stored.StoredResultError` naming it."""
+    from marinebench.results.stored import read_columns, require_keys
+
+    frame = read_columns(path, COLUMNS, ("seed", "t", "truth", "estimate"))
+    require_keys(frame, COLUMNS[:5], path)
+    return frame
 
 
 def traced_arrays(frame: pd.DataFrame, part) -> tuple:
     """The inverse of :func:`trace_frame` for one scenario's ``part`` of an experiment (``Experiment.part``): the
     arrays the figures draw, ``(t, truth, est, variant, seed)``: times ``(T,)``, ``{signal: (T, R)}`` for the truth
     and for the signals that have an estimate, and each of the R traced runs' variant index and seed. Raises
-    ValueError when the frame names a variant the experiment does not have."""
+    ValueError when the frame names a variant the experiment does not have, or lacks a signal of a run."""
     rows = frame[frame["scenario"] == part.scenario.name]
     index = {v.name: i for i, v in enumerate(part.variants)}
     unknown = sorted(set(rows["variant"]) - set(index))
@@ -97,6 +103,8 @@ def traced_arrays(frame: pd.DataFrame, part) -> tuple:
     t = np.sort(rows["t"].unique())
     truth, est = {}, {}
     for signal, block in rows.groupby("signal", sort=True):
+        if lacking := sorted(set(runs) - set(zip(block["variant"], block["seed"]))):
+            raise ValueError(f"no rows of signal '{signal}' for variant {lacking[0][0]}, seed {lacking[0][1]} (a truncated file?)")
         wide = block.pivot_table(index="t", columns=["variant", "seed"], values=["truth", "estimate"], dropna=False)
         truth[signal] = np.column_stack([wide["truth"][run].reindex(t).to_numpy() for run in runs])
         values = np.column_stack([wide["estimate"][run].reindex(t).to_numpy() for run in runs])
