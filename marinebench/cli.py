@@ -254,14 +254,14 @@ def output_stem(config: Path) -> str:
 
 def _up_to_date(exp, target: Path, quiet: bool) -> int | None:
     """``--resume``: None when ``target`` was not written from the same inputs as ``exp`` (its manifest's
-    ``inputs_key``); otherwise says so and returns the number of failing claims the manifest records."""
-    import json
-
+    ``inputs_key``), or its manifest cannot be read (then it is written again); otherwise says so and returns the
+    number of failing claims the manifest records."""
     from marinebench.provenance import inputs_key
+    from marinebench.results.stored import StoredResultError, read_manifest
 
     try:
-        stored = json.loads((target / "manifest.json").read_text())
-    except (OSError, ValueError):
+        stored = read_manifest(target)
+    except (OSError, StoredResultError):
         return None
     if stored.get("inputs_key") != inputs_key(exp):
         return None

@@ -101,6 +101,14 @@ def test_resume_skips_experiments_whose_inputs_are_unchanged(tiny_config, tmp_pa
     res = runner.invoke(app, [*args, "--resume", "--seeds", "3", "--jobs", "2"])
     assert res.exit_code == 0 and "up to date" not in res.output
     assert json.loads(manifest.read_text())["inputs_key"] == man["inputs_key"]
+    # a manifest damaged with its key intact (claims not a list of objects, or no object at all) is written again;
+    # before, an AttributeError or TypeError traceback
+    for damaged in (json.dumps(man | {"claims": [1]}), json.dumps([man]), "\xff"):
+        manifest.write_text(damaged)
+        res = runner.invoke(app, [*args, "--resume", "--seeds", "3", "--quiet"])
+        rewritten = json.loads(manifest.read_text())
+        assert res.exit_code == 0 and rewritten["inputs_key"] == man["inputs_key"], res.output
+        assert rewritten["claims"] == man["claims"] and rewritten["runs"] == man["runs"]
 
 
 def edit(path: Path, tmp_path: Path, name: str, fn) -> Path:
