@@ -27,3 +27,7 @@ class StiffnessError(MarinebenchError):
 class ClusterError(MarinebenchError):
     """Dask is not installed, its scheduler cannot be reached, its workers cannot run this marinebench, or a
     chunk failed on a worker."""
+
+
+class UserCodeError(MarinebenchError):
+    """A class of your own (``kind: custom``) raised while the runs were simulated."""

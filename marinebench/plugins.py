@@ -12,9 +12,12 @@ import hashlib
 import importlib
 import importlib.util
 import sys
+import traceback
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
+
+from marinebench.errors import UserCodeError
 
 _LOADED: dict[str, tuple[float, type]] = {}
 
@@ -63,6 +66,25 @@ def user_class(source: str, members: Iterable[str]) -> type:
         raise ValueError(f"{name} ({where}) lacks {', '.join(missing)}")
     _LOADED[source] = (mtime, cls)
     return cls
+
+
+def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError | None:
+    """``exc``, raised while the runs were simulated, as one line naming where in a class of your own (one of
+    ``sources``) it was raised: its file, line and member (None when no frame of its traceback is in one of their
+    files, e.g. an engine error). The class was checked at validation; this is what it did later."""
+    files = set()
+    for source in sources:
+        where, _ = split_source(source)
+        module = None if where.endswith(".py") else sys.modules.get(where)
+        path = where if module is None else getattr(module, "__file__", None)
+        if path:
+            files.add(Path(path).resolve())
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() in files]
+    if not frames:
+        return None
+    last = frames[-1]
+    return UserCodeError(f"{last.filename}, line {last.lineno}, in {last.name}: {type(exc).__name__}: {exc} (a class "
+                         "of your own, while the runs were simulated)")
 
 
 def source_digest(source: str) -> str | None:

@@ -165,6 +165,13 @@ WRONG_RETURNS = {  # an edit of earth_eso.py -> what the one-line error says
              "EarthFrameEso.init() has shape (9,): expected (B, n_state) = (1, 9)"),
     "missing": (('return {"u": u, ', "return {"), "EarthFrameEso.outputs() lacks ['u'], declared in its signals"),
     "shape": (('return {"u": u, ', 'return {"u": u[:0], '), "EarthFrameEso.outputs()['u'] has shape (0,): expected (B,) = (1,)"),
+    # the derivative is called once too: before, these passed validation and failed in the engine with a traceback
+    "derivative_shape": (("        return np.concatenate([zeta + 3 * w * e, acc_earth + a + 3 * w**2 * e, w**3 * e], axis=1)",
+                          "        return np.concatenate([zeta + 3 * w * e, acc_earth + a + 3 * w**2 * e], axis=1)"),
+                         "EarthFrameEso.derivative() returned ndarray of shape (1, 6): expected an array (B, n_state) = (1, 9)"),
+    "derivative_list": (("        return np.concatenate([zeta + 3 * w * e, acc_earth + a + 3 * w**2 * e, w**3 * e], axis=1)",
+                         "        return list(np.concatenate([zeta + 3 * w * e, acc_earth + a + 3 * w**2 * e, w**3 * e], axis=1))"),
+                        "EarthFrameEso.derivative() returned list of shape (1, 9): expected an array (B, n_state) = (1, 9)"),
 }
 
 
@@ -178,6 +185,23 @@ def test_a_custom_observer_returning_the_wrong_thing_is_refused_before_running(e
     source.write_text(source.read_text().replace(old, new))
     res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 2 and res.output.strip() == f"error: {example}: variants.2.observer.source: ValueError: {message}"
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_exception_a_custom_observer_raises_while_running_is_one_line_naming_its_line(example, tmp_path):
+    """A class that passes validation and raises later (here after 100 steps): one line naming its file, line and
+    member; before, a traceback through the engine."""
+    source = example.parent / "earth_eso.py"
+    old = "        eta, zeta, a = xhat[:, 0:3], xhat[:, 3:6], xhat[:, 6:9]\n"
+    text = source.read_text()
+    assert old in text
+    source.write_text(text.replace(old, old + "        self.calls = getattr(self, 'calls', 0) + 1\n"
+                                   "        if self.calls > 400:\n            raise ZeroDivisionError('late')\n"))
+    line = source.read_text().splitlines().index("            raise ZeroDivisionError('late')") + 1
+    res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {example}: {source.resolve()}, line {line}, in derivative: ZeroDivisionError: late (a class of your "
+        "own, while the runs were simulated)"), res.output
     assert not (tmp_path / "out").exists()
 
 

@@ -26,7 +26,8 @@ from marinebench.observers.custom import observer_class
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.liu_eso import LiuEsoObserver
-from marinebench.plugins import source_digest
+from marinebench.plugins import source_digest, user_code_error
+from marinebench.provenance import custom_sources
 from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
 from marinebench.sim.engine import ObserverGroup, check_step, simulate
@@ -265,7 +266,12 @@ def _run_single(
     if on_start is not None:
         on_start(n_steps)
     t0 = time.perf_counter()
-    diverged = simulate(world, groups, sc.dt, n_steps, recorders + ([tracer] if tracer else []), progress)
+    try:
+        diverged = simulate(world, groups, sc.dt, n_steps, recorders + ([tracer] if tracer else []), progress)
+    except Exception as exc:  # re-raised: as one line when it came from a class of the user's
+        if (error := user_code_error(exc, custom_sources(exp))) is not None:
+            raise error from exc
+        raise
     wall = time.perf_counter() - t0
     metrics = _tidy(exp, _values(exp, recorders, groups, V * S), _estimated_signals(groups, world, V * S),
                     diverged, run_variant, run_seed)

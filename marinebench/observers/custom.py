@@ -19,8 +19,9 @@ protocol of :mod:`marinebench.observers.base`:
     the known thrust, both ``(B, 3)``); or ``discrete = True`` and ``step(xhat, y, tau, k) -> xhat``.
 
 The class is loaded and checked when the config is validated, so a missing file, a class without these
-members, a world it does not apply to, or an instance whose ``max_rate``, ``init`` or ``outputs`` returns the
-wrong thing (:func:`check_built`) is a one-line config error. Runs record the source's SHA-256 in the
+members, a world it does not apply to, or an instance whose ``max_rate``, ``init``, ``outputs``, ``derivative`` or
+``step`` returns the wrong thing or raises (:func:`check_built`) is a one-line config error; an exception the class
+raises later, while the runs are simulated, is one line naming its file and line. Runs record the source's SHA-256 in the
 manifest. With ``sweep --dask``, the file must be at the same path on the workers.
 """
 
@@ -56,7 +57,8 @@ def observer_class(source: str) -> type:
 
 def check_built(observer: Any, n_runs: int) -> None:
     """What a built observer returns, checked before anything runs (ValueError naming the member): ``max_rate()``
-    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,).
+    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,),
+    ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape (B, n_state).
     Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong numbers."""
     name = type(observer).__name__
     rate = observer.max_rate()
@@ -73,6 +75,12 @@ def check_built(observer: Any, n_runs: int) -> None:
     if wrong:
         s, shape = next(iter(wrong.items()))
         raise ValueError(f"{name}.outputs()['{s}'] has shape {shape}: expected (B,) = ({n_runs},)")
+    y, tau = np.zeros((n_runs, 3)), np.zeros((n_runs, 3))  # a measured pose and a thrust, at the initial estimate
+    member = "step" if getattr(observer, "discrete", False) else "derivative"
+    moved = observer.step(x0.copy(), y, tau, 0) if member == "step" else observer.derivative(x0.copy(), y, tau)
+    if not isinstance(moved, np.ndarray) or moved.shape != x0.shape:
+        raise ValueError(f"{name}.{member}() returned {type(moved).__name__} of shape {np.shape(moved)}: expected an "
+                         f"array (B, n_state) = ({n_runs}, {observer.n_state})")
 
 
 class CustomTuning(BaseModel):
