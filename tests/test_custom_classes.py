@@ -164,6 +164,9 @@ WRONG_RETURNS = {  # an edit of earth_eso.py -> what the one-line error says
     "init": (("        return np.zeros((self.omega.size, self.n_state))", "        return np.zeros(self.n_state)"),
              "EarthFrameEso.init() has shape (9,): expected (B, n_state) = (1, 9)"),
     "missing": (('return {"u": u, ', "return {"), "EarthFrameEso.outputs() lacks ['u'], declared in its signals"),
+    "undeclared": (('return {"u": u, ', 'return {"psi": psi, "u": u, '),  # before: a KeyError traceback in the engine
+                   ("EarthFrameEso.outputs() returns ['psi'], not declared in its signals ['u', 'v', 'r', 'sigma_u', "
+                    "'sigma_v', 'sigma_r']")),
     "shape": (('return {"u": u, ', 'return {"u": u[:0], '), "EarthFrameEso.outputs()['u'] has shape (0,): expected (B,) = (1,)"),
     # the derivative is called once too: before, these passed validation and failed in the engine with a traceback
     "derivative_shape": (("        return np.concatenate([zeta + 3 * w * e, acc_earth + a + 3 * w**2 * e, w**3 * e], axis=1)",

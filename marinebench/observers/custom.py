@@ -57,7 +57,7 @@ def observer_class(source: str) -> type:
 
 def check_built(observer: Any, n_runs: int) -> None:
     """What a built observer returns, checked before anything runs (ValueError naming the member): ``max_rate()``
-    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,),
+    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,) and no other,
     ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape (B, n_state).
     Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong numbers."""
     name = type(observer).__name__
@@ -71,6 +71,8 @@ def check_built(observer: Any, n_runs: int) -> None:
     missing = [s for s in observer.signals if s not in out]
     if missing:
         raise ValueError(f"{name}.outputs() lacks {missing}, declared in its signals")
+    if undeclared := [s for s in out if s not in observer.signals]:
+        raise ValueError(f"{name}.outputs() returns {undeclared}, not declared in its signals {list(observer.signals)}")
     wrong = {s: np.shape(out[s]) for s in observer.signals if np.shape(out[s]) != (n_runs,)}
     if wrong:
         s, shape = next(iter(wrong.items()))
