@@ -812,6 +812,13 @@ _USAGE_ERROR, _CLICK_EXCEPTION = (next(c for c in typer.BadParameter.__mro__ if 
                                   for name in ("UsageError", "ClickException"))
 
 
+def _command_named(args: list[str]) -> str:
+    """``marinebench COMMAND`` for the command ``args`` name first (a usage error raised while its options are
+    parsed may carry no context), else ``marinebench``."""
+    names = typer.main.get_command(app).commands
+    return f"marinebench {args[0]}" if args and args[0] in names else "marinebench"
+
+
 def main(args: list[str] | None = None) -> None:
     """Console entry point: ``app``, except that a bad option or argument (a usage error, which typer draws as
     a boxed panel with the usage) is one line naming it, like every other input error, exit code 2; and SIGTERM
@@ -821,7 +828,7 @@ def main(args: list[str] | None = None) -> None:
         code = app(args=args, prog_name="marinebench", standalone_mode=False)
     except _USAGE_ERROR as exc:
         message = " ".join(exc.format_message().split()).replace(": Value error, ", ": ")  # typer checks via pydantic
-        command = exc.ctx.command_path if exc.ctx else "marinebench"
+        command = exc.ctx.command_path if exc.ctx else _command_named(sys.argv[1:] if args is None else args)
         if message:  # (none when no arguments printed the help)
             err.print(f"error: {message} (see '{command} --help')", markup=False)
         sys.exit(2)

@@ -291,6 +291,8 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["sweep", "k", "--jobs", "2", "--dask", "local"], "error: --jobs: runs the batches in local processes; with --dask"),
     (["sweep", "k", "--grid", "--require-claims"], "error: --require-claims: a grid sweep maps where each claim holds"),
     (["bogus"], "error: No such command 'bogus'. (see 'marinebench --help')"),
+    # an option short of its values has no click context: the help named is still the command's (before: marinebench's)
+    (["compare", "{cfg}", "--variants", "a"], "error: Option '--variants' requires 2 arguments. (see 'marinebench compare --help')"),
     (["schema", "--kind", "nope"], "error: Invalid value for '--kind': 'nope' is not one of 'experiment', 'scenario'"),
     (["compare", "a", "b", "--format", "nope"], "error: Invalid value for '--format': 'nope' is not one of 'md', 'json'"),
 ])
