@@ -552,10 +552,13 @@ def bench(
     _sweep_config(config)
     with one_line_errors():
         base, _ = _load(config, [], None, None, sweep_params=False)
-        if base.scenario is None or base.scenario.kind != "dp_supply":
-            raise ConfigError(config, "scenario.kind", "bench compares the batched engine with the plain per-run "
-                              "reference of the DP observers, which exists for dp_supply scenarios (e.g. configs/torben_fig3.yaml)")
-        exp = sweep_experiment(base, params.split(","), None, n, horizon, config)
+        _benchable(base, config)
+        names = params.split(",")
+        if base.sweep is None or (unknown := [p for p in names if p not in base.sweep.params]):
+            have = ", ".join(base.sweep.params) if base.sweep is not None else "none: the config has no sweep section"
+            raise ConfigError("--params", "", f"{params}: {config} has no sweep parameter {unknown[0] if base.sweep else names[0]!r} "
+                              f"(its sweep.params: {have})")
+        exp = sweep_experiment(base, names, None, n, horizon, config)
     full_horizon = base.scenario.horizon
     B = len(exp.variants)
     t0 = _time.perf_counter()
@@ -573,6 +576,20 @@ def bench(
               f"reference {t_ref * B * scale:.0f} s", markup=False)
     out.print(f"largest relative J_tot difference batched vs reference: {worst:.2e}", markup=False)
     out.print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB", markup=False)
+
+
+def _benchable(base, config: Path) -> None:
+    """bench: the plain per-run reference exists for the DP observers (NPO, resetting) in a dp_supply world, and is
+    compared with the batch on its J_tot metric."""
+    if base.scenario is None or base.scenario.kind != "dp_supply":
+        raise ConfigError(config, "scenario.kind", "bench compares the batched engine with the plain per-run "
+                          "reference of the DP observers, which exists for dp_supply scenarios (e.g. configs/torben_fig3.yaml)")
+    swept = [v for v in base.variants if v.name in (base.sweep.swept if base.sweep is not None else [])]
+    if other := [v.name for v in swept if v.observer.kind not in ("npo", "resetting_fto")]:
+        raise ConfigError(config, "sweep.variant", f"{other[0]}: bench's per-run reference is of the DP observers (npo, "
+                          "resetting_fto), not of this variant's (e.g. configs/torben_fig3.yaml)")
+    if not any(m.kind == "j_tot" and m.label == "J_tot" for m in base.metrics):
+        raise ConfigError(config, "metrics", "bench compares the batch with the reference on a j_tot metric named J_tot")
 
 
 class Format(str, Enum):

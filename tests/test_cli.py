@@ -736,6 +736,17 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
     bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
     assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
     assert not (tmp_path / "o").exists()
+    # a DP world whose swept variant is no DP observer (before: an AttributeError after the batch), and parameters
+    # the config does not sweep (before: named sweep.params, though --params had chosen them)
+    cross = ROOT / "configs" / "cross_dp_impulse.yaml"
+    for args, expected in [
+        (["--config", str(cross), "--params", "eps"], (f"error: {cross}: sweep.variant: liu_eps0.1: bench's per-run "
+                                                      "reference is of the DP observers (npo, resetting_fto)")),
+        (["--config", str(ROOT / "configs" / "torben_fig1.yaml")], ("error: --params: k,delta,eps: "
+         f"{ROOT / 'configs' / 'torben_fig1.yaml'} has no sweep parameter 'k' (its sweep.params: gnss_sigma)")),
+    ]:
+        bench = runner.invoke(app, ["bench", *args, "--horizon", "2", "--n", "2", "--runs", "1"])
+        assert bench.exit_code == 2 and bench.output.startswith(expected) and len(bench.output.splitlines()) == 1, bench.output
 
 
 def test_bench_times_both_engines_on_the_same_runs_and_they_agree(tmp_path, monkeypatch):
