@@ -554,10 +554,10 @@ def bench(
         base, _ = _load(config, [], None, None, sweep_params=False)
         _benchable(base, config)
         names = params.split(",")
-        if base.sweep is None or (unknown := [p for p in names if p not in base.sweep.params]):
-            have = ", ".join(base.sweep.params) if base.sweep is not None else "none: the config has no sweep section"
-            raise ConfigError("--params", "", f"{params}: {config} has no sweep parameter {unknown[0] if base.sweep else names[0]!r} "
-                              f"(its sweep.params: {have})")
+        have = list(base.sweep.params) if base.sweep is not None else []
+        if unknown := [p for p in names if p not in have]:
+            raise ConfigError("--params", "", f"{params}: {config} has no sweep parameter {unknown[0]!r} (its "
+                              f"sweep.params: {', '.join(have) or 'none: the config has no sweep section'})")
         exp = sweep_experiment(base, names, None, n, horizon, config)
     full_horizon = base.scenario.horizon
     B = len(exp.variants)
