@@ -813,7 +813,8 @@ def _print_settings(kind: str, registered: dict, models: dict) -> None:
         if kind not in entries:
             continue
         out.print(f"[bold]{kind}[/bold] ({group}): {escape(registered[group][kind])}")
-        rows = fields_of(entries[kind])
+        only = getattr(entries[kind], "ONLY_FOR", {})  # a model read by several kinds: this kind's settings
+        rows = [row for row in fields_of(entries[kind]) if kind in only.get(row[0], (kind,))]
         width = max((len(name) for name, *_ in rows), default=0)
         for name, type_, default, text in rows:
             out.print(f"  {name:<{width}}  {type_} = {default}" + (f"  {text}" if text else ""), markup=False)

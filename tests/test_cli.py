@@ -657,6 +657,22 @@ def test_list_of_a_kind_gives_its_settings_with_type_default_and_meaning():
     # a name in two groups: both
     res = runner.invoke(app, ["list", "custom"], env={"COLUMNS": "250"})
     assert "custom (observers):" in res.output and "custom (controllers):" in res.output
+    # one model read by several kinds (the controllers): each kind lists the settings it reads, not the others'
+    names = {kind: [line.split()[0] for line in runner.invoke(app, ["list", kind]).output.splitlines()[1:]]
+             for kind in ("rise", "srise")}
+    controllers = runner.invoke(app, ["list", "custom"]).output.split("custom (controllers):")[1].splitlines()[1:]
+    common = ["feedback", "output_scale", "disturbance_feedforward"]
+    assert names == {"rise": [*common, "preset", "depth", "yaw"], "srise": [*common, "depth", "yaw"]}
+    assert [line.split()[0] for line in controllers] == [*common, "source", "params"]
+
+
+def test_a_setting_another_controller_kind_reads_is_refused():
+    """Before, S+RISE took a RISE preset without a word, and ran Table II's gains."""
+    from marinebench.controllers.spec import ControllerSpec
+
+    with pytest.raises(ValueError, match="preset chooses RISE's gains; S\\+RISE's are Table II's"):
+        ControllerSpec(kind="srise", preset="table2_equivalent")
+    assert ControllerSpec(kind="rise", preset="table2_equivalent").preset == "table2_equivalent"
 
 
 def test_every_listed_kind_has_its_settings_and_every_model_is_listed():

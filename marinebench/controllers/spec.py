@@ -9,7 +9,7 @@ own state (integrals) between calls, one row per run."""
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -28,6 +28,9 @@ class ControllerSpec(BaseModel):
     """The controller of a variant in a closed-loop (rov_tracking) scenario."""
 
     model_config = STRICT
+    #: settings read by some kinds only (``marinebench list KIND`` lists a kind's own; the others are refused)
+    ONLY_FOR: ClassVar[dict[str, tuple[str, ...]]] = {
+        "preset": ("rise",), "depth": ("rise", "srise"), "yaw": ("rise", "srise"), "source": ("custom",), "params": ("custom",)}
     kind: Literal["rise", "srise", "custom"]
     feedback: Literal["measured", "cdo", "eo"] = Field(
         "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "
@@ -68,6 +71,8 @@ class ControllerSpec(BaseModel):
             user_class(self.source, CUSTOM_MEMBERS)
         elif self.source is not None or self.params:
             raise ValueError(f"source and params are for custom controllers, not {self.kind}")
+        elif self.kind == "srise" and self.preset != "subjugator":  # before: ignored
+            raise ValueError("preset chooses RISE's gains; S+RISE's are Table II's (override them with depth, yaw)")
         else:
             self.gains()  # unknown or out-of-range gain overrides are config errors, not ignored
         return self
