@@ -429,6 +429,18 @@ def test_interrupted_sweep_resumes_without_rerunning_finished_batches(tmp_path, 
     a = reference.sort_values(key).reset_index(drop=True)
     b = resumed.sort_values(key).reset_index(drop=True)
     assert a["value"].tolist() == b["value"].tolist()
+    # a kept batch damaged since (emptied, or a row of another variant) runs again; before, it counted as finished
+    # and the sweep failed reading it after simulating the rest; an unreadable key starts afresh
+    partial = target.parent / f".{target.name}.partial"
+    chunk = partial / "chunk-0000.csv"
+    for damage in ("", chunk.read_text().replace(exp.variants[0].name, "other")):
+        chunk.write_text(damage)
+        again, _, ran = run_chunked(exp, target, chunk_size=2)
+        assert ran == 1 and again.sort_values(key)["value"].tolist() == a["value"].tolist()
+    (partial / "key").unlink()
+    (partial / "key").mkdir()
+    _, _, ran = run_chunked(exp, target, chunk_size=2)
+    assert ran == 2 and (partial / "key").is_file()
     # batches left by other code (e.g. before a fix) are not reused, though the config is the same
     (target.parent / f".{target.name}.partial" / "chunk-0001.csv").unlink()
     from marinebench import provenance

@@ -623,7 +623,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
 
     An interrupted sweep resumes: chunks already on disk for the same inputs (``provenance.inputs_key``: the
     resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not
-    rerun. Runs are independent of the batch they are in (per-run seeding), so chunking does not change any
+    rerun (one that cannot be read back runs again). Runs are independent of the batch they are in (per-run seeding), so chunking does not change any
     number. With a ``pool`` (``experiments.cluster``: local worker processes or Dask) the unfinished chunks
     are submitted at once and each is saved here as it arrives, so the numbers are the same as in one
     process and an interrupted parallel sweep resumes the same way.
@@ -638,10 +638,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
 
     key = inputs_key(exp)
     partial = partial_dir(target)
-    stale = partial.exists() and (
-        not (partial / "key").exists() or (partial / "key").read_text().strip() != key
-    )
-    if stale:
+    if partial.exists() and _kept_key(partial) != key:
         shutil.rmtree(partial)  # a different sweep, or other code, was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
     atomic_write_text(partial / "key", key)
@@ -650,7 +647,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     n_steps = steps(exp)
     if on_start is not None:
         on_start(n_steps * len(chunks))
-    pending = [c for c, path in enumerate(paths) if not path.exists()]
+    pending = [c for c, path in enumerate(paths) if not _kept_chunk(path, chunks[c])]
     if progress is not None:
         progress(n_steps * (len(chunks) - len(pending)))
     if pool is None:
@@ -670,6 +667,32 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
 
 
 CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)
+
+
+def _kept_key(partial: Path) -> str | None:
+    """The inputs key the kept chunks of ``partial`` were run for (None when it cannot be read)."""
+    try:
+        return (partial / "key").read_text().strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _kept_chunk(path: Path, variants: list[Variant]) -> bool:
+    """Whether ``path`` holds a finished chunk of ``variants``: readable, with a row of each. One that does not (a file
+    damaged or edited since) is removed, and the chunk runs again; before, it counted as finished and the sweep
+    failed with a traceback after simulating every other chunk."""
+    from marinebench.results.stored import METRICS_COLUMNS, StoredResultError, read_columns
+
+    if not path.exists():
+        return False
+    try:
+        names = set(read_columns(path, METRICS_COLUMNS, ("seed", "value"))["variant"])
+    except StoredResultError:
+        names = set()
+    if names == {v.name for v in variants}:
+        return True
+    path.unlink()
+    return False
 
 
 def partial_dir(target: Path) -> Path:
