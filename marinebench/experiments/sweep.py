@@ -623,8 +623,8 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
 
     An interrupted sweep resumes: chunks already on disk for the same inputs (``provenance.inputs_key``: the
     resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not
-    rerun (one that cannot be read back runs again). Runs are independent of the batch they are in (per-run seeding), so chunking does not change any
-    number. With a ``pool`` (``experiments.cluster``: local worker processes or Dask) the unfinished chunks
+    rerun (one that cannot be read back runs again). Runs are independent of the batch they are in (per-run
+    seeding), so chunking does not change any number. With a ``pool`` (``experiments.cluster``: local worker processes or Dask) the unfinished chunks
     are submitted at once and each is saved here as it arrives, so the numbers are the same as in one
     process and an interrupted parallel sweep resumes the same way.
     Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
