@@ -28,7 +28,8 @@ class ControllerSpec(BaseModel):
     """The controller of a variant in a closed-loop (rov_tracking) scenario."""
 
     model_config = STRICT
-    #: settings read by some kinds only (``marinebench list KIND`` lists a kind's own; the others are refused)
+    #: settings read by some kinds only: another kind's are refused (off their defaults), and ``marinebench list
+    #: KIND`` lists a kind's own
     ONLY_FOR: ClassVar[dict[str, tuple[str, ...]]] = {
         "preset": ("rise",), "depth": ("rise", "srise"), "yaw": ("rise", "srise"), "source": ("custom",), "params": ("custom",)}
     kind: Literal["rise", "srise", "custom"]
@@ -63,16 +64,17 @@ class ControllerSpec(BaseModel):
             raise ValueError("output_scale must be positive")
         if any(self.feedforward_mask()) and self.feedback == "measured":
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
-        if self.kind == "custom":
-            if self.source is None:
-                raise ValueError("source: a custom controller needs source: file.py:ClassName")
-            if self.depth or self.yaw or self.preset != "subjugator":
+        if self.kind == "custom" and self.source is None:
+            raise ValueError("source: a custom controller needs source: file.py:ClassName")
+        if foreign := [f for f, kinds in self.ONLY_FOR.items() if self.kind not in kinds
+                       and getattr(self, f) != type(self).model_fields[f].get_default(call_default_factory=True)]:
+            if self.kind == "custom":
                 raise ValueError("a custom controller takes its settings in 'params' (not preset, depth, yaw)")
-            user_class(self.source, CUSTOM_MEMBERS)
-        elif self.source is not None or self.params:
+            if "preset" in foreign:  # before: ignored by S+RISE
+                raise ValueError("preset chooses RISE's gains; S+RISE's are Table II's (override them with depth, yaw)")
             raise ValueError(f"source and params are for custom controllers, not {self.kind}")
-        elif self.kind == "srise" and self.preset != "subjugator":  # before: ignored
-            raise ValueError("preset chooses RISE's gains; S+RISE's are Table II's (override them with depth, yaw)")
+        if self.kind == "custom":
+            user_class(self.source, CUSTOM_MEMBERS)
         else:
             self.gains()  # unknown or out-of-range gain overrides are config errors, not ignored
         return self
