@@ -195,11 +195,11 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
     batches, executor, times). Returns the checked claims and the claims mapped over a grid."""
     shown = base.sweep.shown
     metrics = as_written(metrics)
-    with diverged_runs_quiet():  # the table shows '–' where every run of a point diverged; a claim there fails
+    table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
+    # the table shows '–' where every run of a point diverged, and a claim there fails: without numpy's warnings
+    with diverged_runs_quiet(), atomic_directory(target) as tmp:
         claims = [] if grid else sweep_claims(metrics, base.sweep)
         mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
-    table, figure = (grid_table, grid_figure) if grid else (sweep_table, sweep_figure)
-    with atomic_directory(target) as tmp, diverged_runs_quiet():
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
         (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)))
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
