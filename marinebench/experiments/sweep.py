@@ -647,7 +647,8 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     n_steps = steps(exp)
     if on_start is not None:
         on_start(n_steps * len(chunks))
-    pending = [c for c, path in enumerate(paths) if not _kept_chunk(path, chunks[c])]
+    kept = {c: frame for c, path in enumerate(paths) if (frame := _kept_chunk(path, chunks[c])) is not None}
+    pending = [c for c in range(len(chunks)) if c not in kept]
     if progress is not None:
         progress(n_steps * (len(chunks) - len(pending)))
     if pool is None:
@@ -663,7 +664,8 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
         raise ClusterError(f"{pool.option}: chunk {exc.chunk} failed on a worker ({type(exc.cause).__name__}: "
                            f"{exc.cause}); the finished chunks are kept in {partial}, rerun the same command to "
                            "resume") from None
-    return pd.concat([read_tidy(path) for path in paths], ignore_index=True), wall, len(pending)
+    frames = [kept[c] if c in kept else read_tidy(path) for c, path in enumerate(paths)]  # kept ones: read once
+    return pd.concat(frames, ignore_index=True), wall, len(pending)
 
 
 CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)
@@ -677,22 +679,22 @@ def _kept_key(partial: Path) -> str | None:
         return None
 
 
-def _kept_chunk(path: Path, variants: list[Variant]) -> bool:
-    """Whether ``path`` holds a finished chunk of ``variants``: readable, with a row of each. One that does not (a file
-    damaged or edited since) is removed, and the chunk runs again; before, it counted as finished and the sweep
-    failed with a traceback after simulating every other chunk."""
+def _kept_chunk(path: Path, variants: list[Variant]) -> pd.DataFrame | None:
+    """The finished chunk of ``variants`` that ``path`` holds: readable, with a row of each (None without one). One
+    that is not (a file damaged or edited since) is removed, and the chunk runs again; before, it counted as
+    finished and the sweep failed with a traceback after simulating every other chunk."""
     from marinebench.results.stored import METRICS_COLUMNS, StoredResultError, read_columns
 
     if not path.exists():
-        return False
+        return None
     try:
-        names = set(read_columns(path, METRICS_COLUMNS, ("seed", "value"))["variant"])
+        frame = read_columns(path, METRICS_COLUMNS, ("seed", "value"))
     except StoredResultError:
-        names = set()
-    if names == {v.name for v in variants}:
-        return True
+        frame = None
+    if frame is not None and set(frame["variant"]) == {v.name for v in variants}:
+        return frame
     path.unlink()
-    return False
+    return None
 
 
 def partial_dir(target: Path) -> Path:
