@@ -31,3 +31,8 @@ class ClusterError(MarinebenchError):
 
 class UserCodeError(MarinebenchError):
     """A class of your own (``kind: custom``) raised while the runs were simulated."""
+
+
+class ProtocolError(ValueError):
+    """A class of your own (``kind: custom``) answered outside its protocol: a missing or undeclared signal, an array
+    of the wrong shape. At validation it is a config error; while the runs are simulated, one line (``plugins``)."""

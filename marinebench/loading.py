@@ -24,7 +24,7 @@ from pydantic import ValidationError
 
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, AnyScenario, Experiment, Variant
 from marinebench.controllers.spec import check_built as check_controller
-from marinebench.errors import ConfigError
+from marinebench.errors import ConfigError, ProtocolError
 from marinebench.keypaths import did_you_mean, key_path, near_misses, unknown_key_hint
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
@@ -429,9 +429,11 @@ def preflight(exp: Experiment, file: Path, sweep_params: bool = True) -> None:
 @contextmanager
 def _user_code(file: Path, key: str) -> Iterator[None]:
     """Run a custom class's own code at validation: whatever it raises (a constructor refusing its params, a
-    member failing or returning the wrong thing) becomes one config error at ``key``."""
+    member failing or returning the wrong thing, a ProtocolError: said as it is) becomes one config error at ``key``."""
     try:
         yield
+    except ProtocolError as exc:
+        raise ConfigError(file, key, str(exc)) from None
     except Exception as exc:  # noqa: BLE001 - the class's code: any exception is the user's to fix
         raise ConfigError(file, key, f"{type(exc).__name__}: {exc}") from None
 

@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from marinebench.errors import UserCodeError
+from marinebench.errors import ProtocolError, UserCodeError
 
 _LOADED: dict[str, tuple[float, type]] = {}
 
@@ -71,7 +71,10 @@ def user_class(source: str, members: Iterable[str]) -> type:
 def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError | None:
     """``exc``, raised while the runs were simulated, as one line naming where in a class of your own (one of
     ``sources``) it was raised: its file, line and member (None when no frame of its traceback is in one of their
-    files, e.g. an engine error). The class was checked at validation; this is what it did later."""
+    files, e.g. an engine error), or, for a :class:`ProtocolError` (an answer outside the protocol), what was wrong.
+    The class was checked at validation; this is what it did later."""
+    if isinstance(exc, ProtocolError):
+        return UserCodeError(f"{exc} (a class of your own, while the runs were simulated)")
     files = set()
     for source in sources:
         where, _ = split_source(source)

@@ -187,7 +187,7 @@ def test_a_custom_observer_returning_the_wrong_thing_is_refused_before_running(e
     assert old in source.read_text()
     source.write_text(source.read_text().replace(old, new))
     res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet"])
-    assert res.exit_code == 2 and res.output.strip() == f"error: {example}: variants.2.observer.source: ValueError: {message}"
+    assert res.exit_code == 2 and res.output.strip() == f"error: {example}: variants.2.observer.source: {message}"
     assert not (tmp_path / "out").exists()
 
 
@@ -205,6 +205,38 @@ def test_an_exception_a_custom_observer_raises_while_running_is_one_line_naming_
     assert res.exit_code == 2 and res.output.strip() == (
         f"error: {example}: {source.resolve()}, line {line}, in derivative: ZeroDivisionError: late (a class of your "
         "own, while the runs were simulated)"), res.output
+    assert not (tmp_path / "out").exists()
+
+
+LATE_ANSWERS = {  # what earth_eso.py's outputs/derivative return after 400 calls -> what the one-line error says
+    # before: a stale estimate kept in the results (the last one given), or one broadcast to every run, rc 0
+    "dropped": ("outputs", "out.pop('u')", "EarthFrameEso.outputs() lacks ['u'], declared in its signals"),
+    "one_run": ("outputs", "out['u'] = out['u'][:1]", "EarthFrameEso.outputs()['u'] has shape (1,): expected (B,) = (2,)"),
+    "scalar": ("outputs", "out['u'] = 0.0", "EarthFrameEso.outputs()['u'] has shape (): expected (B,) = (2,)"),
+    # before: a traceback through the engine
+    "not_a_dict": ("outputs", "out = None", "EarthFrameEso.outputs() returned NoneType: expected a dict of its signals"),
+    "fewer_states": ("derivative", "out = out[:, :6]",
+                     "EarthFrameEso.derivative() returned ndarray of shape (2, 6): expected an array (B, n_state) = (2, 9)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(LATE_ANSWERS))
+def test_a_custom_observer_answering_wrong_while_running_is_one_line(example, tmp_path, case):
+    """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py ``Checked``),
+    not only at validation: a class that later drops a signal or changes a shape is one line, and nothing is written."""
+    member, edit, message = LATE_ANSWERS[case]
+    source = example.parent / "earth_eso.py"
+    text = source.read_text()
+    head = f"    def {member}(self"
+    assert text.count(head) == 1
+    text = text.replace(head, f"    def {member}(self, *args):\n        out = self._{member}(*args)\n"
+                              "        self.calls = getattr(self, 'calls', 0) + 1\n"
+                              f"        if self.calls > 400:\n            {edit}\n        return out\n\n    def _{member}(self")
+    source.write_text(text)
+    res = runner.invoke(app, ["run", str(example), "--seeds", "1", "--set", "scenario.horizon=8", "--out",
+                              str(tmp_path / "out"), "--quiet", "--jobs", "1"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {example}: {message} (a class of your own, while the runs were simulated)"), res.output
     assert not (tmp_path / "out").exists()
 
 
@@ -258,7 +290,7 @@ def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_examp
     ("source: pid.py:Pid, params: {depth: {kq: 1.0}}", "variants.2.controller.params",
      "ValueError: unknown PID settings ['depth.kq']"),
     ("source: pid.py:Pid, params: {depth: {kp: .nan}}", "variants.2.controller.source",
-     "ValueError: Pid.command() at zero error returned [[nan, 0.0]] of shape (1, 2): expected finite (B, 2) = (1, 2)"),
+     "Pid.command() at zero error returned [[nan, 0.0]]: expected finite values"),
 ])
 def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_example, tmp_path, edit, key, message):
     text = controller_example.read_text()
@@ -269,6 +301,26 @@ def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_e
     lines = res.output.strip().splitlines()
     assert res.exit_code == 2 and len(lines) == 1, res.output
     assert lines[0].startswith(f"error: {controller_example}: {key}: ") and message in lines[0], lines[0]
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("edit", "got"), [("[:, :1]", "ndarray of shape (2, 1)"), ("[:1]", "ndarray of shape (1, 2)"),
+                                           (".sum()", "float64 of shape ()"), (".tolist() and None", "NoneType of shape ()")])
+def test_a_custom_controller_answering_wrong_while_running_is_one_line(controller_example, tmp_path, edit, got):
+    """A custom controller's command is checked at every control step (controllers/spec.py ``Checked``): one
+    column, one row or a scalar, after the first 50 commands, is one line; before, numpy broadcast it to every run
+    and DOF and the run finished with rc 0 (wrong numbers)."""
+    source = controller_example.parent / "pid.py"
+    old = "        return self.kp * e1 + self.ki * self.integral + self.kd * e1_dot\n"
+    text = source.read_text()
+    assert old in text
+    source.write_text(text.replace(old, old.replace("return", "tau =") + "        self.calls = getattr(self, 'calls', 0) + 1\n"
+                                   f"        return tau if self.calls <= 50 else tau{edit}\n"))
+    res = runner.invoke(app, ["run", str(controller_example), "--seeds", "2", "--set", "scenario.horizon=3",
+                              "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {controller_example}: Pid.command() returned {got}: expected numbers (B, 2) = (2, 2), depth and yaw "
+        "(a class of your own, while the runs were simulated)"), res.output
     assert not (tmp_path / "out").exists()
 
 

@@ -5,7 +5,8 @@ A custom controller (``kind: custom, source: file.py:Class, params: {...}``; ``m
 is built as ``Class(params, batch)`` and implements ``command(e1, e1_dot, h) -> tau``: the tracking errors
 ``e1 = eta_d - eta`` and their rates, ``(batch, 2)`` for (depth [m], yaw [rad]), and the control period ``h`` [s];
 ``tau (batch, 2)`` in N and N m (before ``output_scale``; thrust allocation and saturation follow). It keeps its
-own state (integrals) between calls, one row per run."""
+own state (integrals) between calls, one row per run. Its commands are checked to be ``(batch, 2)`` at validation
+and at every control step (:class:`Checked`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 from pydantic import BaseModel, Field, model_validator
 
 from marinebench.controllers.rise import RISE_PRESETS, TABLE_II_DEPTH, TABLE_II_YAW, Rise, RiseGains, SRise, SRiseGains
+from marinebench.errors import ProtocolError
 from marinebench.plugins import user_class
 from marinebench.settings import STRICT, over
 
@@ -98,15 +100,36 @@ class ControllerSpec(BaseModel):
 
     def build(self, batch: int):
         if self.kind == "custom":
-            return user_class(self.source, CUSTOM_MEMBERS)(self.params, batch)
+            return Checked(user_class(self.source, CUSTOM_MEMBERS)(self.params, batch), batch)
         return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)
 
 
 def check_built(controller: Any, h: float) -> None:
-    """A custom controller built for one run, asked once for its command at zero error (ValueError unless it is
+    """A custom controller built for one run, asked once for its command at zero error (a ProtocolError unless it is
     a finite (1, 2) array): a mistake in the class is then a config error before anything runs."""
     zero = np.zeros((1, 2))
-    tau = np.asarray(controller.command(zero, zero.copy(), h), dtype=float)
-    if tau.shape != (1, 2) or not np.all(np.isfinite(tau)):
-        raise ValueError(f"{type(controller).__name__}.command() at zero error returned {tau.tolist()!r} of shape "
-                         f"{tau.shape}: expected finite (B, 2) = (1, 2), depth and yaw")
+    checked = controller if isinstance(controller, Checked) else Checked(controller, 1)
+    tau = checked.command(zero, zero.copy(), h)
+    if not np.all(np.isfinite(tau)):
+        raise ProtocolError(f"{checked.name}.command() at zero error returned {tau.tolist()!r}: expected finite values")
+
+
+class Checked:
+    """A built custom controller whose every command is checked to be ``(batch, 2)`` numbers (depth, yaw), at
+    validation (:func:`check_built`) and at every control step of the runs: one column, one row or a scalar would
+    otherwise be broadcast to every run and DOF (wrong numbers, no error). A wrong answer is a :class:`ProtocolError`;
+    non-finite values are allowed while running (a diverged run, reported as such)."""
+
+    def __init__(self, inner: Any, batch: int) -> None:
+        self.inner, self.batch, self.name = inner, batch, type(inner).__name__
+
+    def command(self, e1: np.ndarray, e1_dot: np.ndarray, h: float) -> np.ndarray:
+        value = self.inner.command(e1, e1_dot, h)
+        try:
+            tau = np.asarray(value, dtype=float) if value is not None else None
+        except (TypeError, ValueError):
+            tau = None
+        if tau is None or tau.shape != (self.batch, 2):
+            raise ProtocolError(f"{self.name}.command() returned {type(value).__name__} of shape {np.shape(value)}: "
+                                f"expected numbers (B, 2) = ({self.batch}, 2), depth and yaw")
+        return tau

@@ -20,8 +20,9 @@ protocol of :mod:`marinebench.observers.base`:
 
 The class is loaded and checked when the config is validated, so a missing file, a class without these
 members, a world it does not apply to, or an instance whose ``max_rate``, ``init``, ``outputs``, ``derivative`` or
-``step`` returns the wrong thing or raises (:func:`check_built`) is a one-line config error; an exception the class
-raises later, while the runs are simulated, is one line naming its file and line. Runs record the source's SHA-256 in the
+``step`` returns the wrong thing or raises (:func:`check_built`) is a one-line config error. While the runs are
+simulated every answer is checked again (:class:`Checked`), and an exception the class raises is one line naming
+its file and line. Runs record the source's SHA-256 in the
 manifest. With ``sweep --dask``, the file must be at the same path on the workers.
 """
 
@@ -34,6 +35,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, Field, field_validator
 
+from marinebench.errors import ProtocolError
 from marinebench.plugins import split_source, user_class
 from marinebench.settings import STRICT
 
@@ -56,33 +58,71 @@ def observer_class(source: str) -> type:
 
 
 def check_built(observer: Any, n_runs: int) -> None:
-    """What a built observer returns, checked before anything runs (ValueError naming the member): ``max_rate()``
-    a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as (B,) and no other,
-    ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape (B, n_state).
-    Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong numbers."""
-    name = type(observer).__name__
-    rate = observer.max_rate()
-    if not isinstance(rate, Real) or not math.isfinite(rate) or rate < 0:
-        raise ValueError(f"{name}.max_rate() returned {rate!r}: expected a finite number >= 0 (rad/s)")
-    x0 = np.asarray(observer.init())
-    if x0.shape != (n_runs, observer.n_state):
-        raise ValueError(f"{name}.init() has shape {x0.shape}: expected (B, n_state) = ({n_runs}, {observer.n_state})")
-    out = observer.outputs(x0)
-    missing = [s for s in observer.signals if s not in out]
-    if missing:
-        raise ValueError(f"{name}.outputs() lacks {missing}, declared in its signals")
-    if undeclared := [s for s in out if s not in observer.signals]:
-        raise ValueError(f"{name}.outputs() returns {undeclared}, not declared in its signals {list(observer.signals)}")
-    wrong = {s: np.shape(out[s]) for s in observer.signals if np.shape(out[s]) != (n_runs,)}
-    if wrong:
-        s, shape = next(iter(wrong.items()))
-        raise ValueError(f"{name}.outputs()['{s}'] has shape {shape}: expected (B,) = ({n_runs},)")
+    """What a built observer returns, checked before anything runs (a :class:`ProtocolError` naming the member):
+    ``max_rate()`` a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as
+    (B,) and no other, ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape
+    (B, n_state). Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong
+    numbers."""
+    checked = observer if isinstance(observer, Checked) else Checked(observer, n_runs)
+    checked.max_rate()
+    x0 = checked.init()
+    checked.outputs(x0)
     y, tau = np.zeros((n_runs, 3)), np.zeros((n_runs, 3))  # a measured pose and a thrust, at the initial estimate
-    member = "step" if getattr(observer, "discrete", False) else "derivative"
-    moved = observer.step(x0.copy(), y, tau, 0) if member == "step" else observer.derivative(x0.copy(), y, tau)
-    if not isinstance(moved, np.ndarray) or moved.shape != x0.shape:
-        raise ValueError(f"{name}.{member}() returned {type(moved).__name__} of shape {np.shape(moved)}: expected an "
-                         f"array (B, n_state) = ({n_runs}, {observer.n_state})")
+    if checked.discrete:
+        checked.step(x0.copy(), y, tau, 0)
+    else:
+        checked.derivative(x0.copy(), y, tau)
+
+
+class Checked:
+    """A built custom observer whose every answer is checked against the protocol, at validation
+    (:func:`check_built`) and at every step of the runs: a class that later drops a signal, changes a shape or
+    returns a list would otherwise leave a stale or broadcast estimate in the results (wrong numbers, no error) or
+    fail deep in the engine. A wrong answer is a :class:`ProtocolError` naming the member."""
+
+    def __init__(self, inner: Any, n_runs: int) -> None:
+        self.inner, self.name = inner, type(inner).__name__
+        self.signals, self.n_state = tuple(inner.signals), int(inner.n_state)
+        self.discrete = bool(getattr(inner, "discrete", False))
+        self.shape = (n_runs, self.n_state)
+
+    def max_rate(self) -> float:
+        rate = self.inner.max_rate()
+        if not isinstance(rate, Real) or not math.isfinite(rate) or rate < 0:
+            raise ProtocolError(f"{self.name}.max_rate() returned {rate!r}: expected a finite number >= 0 (rad/s)")
+        return rate
+
+    def init(self) -> np.ndarray:
+        x0 = np.asarray(self.inner.init())
+        if x0.shape != self.shape:
+            raise ProtocolError(f"{self.name}.init() has shape {x0.shape}: expected (B, n_state) = {self.shape}")
+        return x0
+
+    def outputs(self, xhat: np.ndarray) -> dict[str, np.ndarray]:
+        out = self.inner.outputs(xhat)
+        if not isinstance(out, dict):
+            raise ProtocolError(f"{self.name}.outputs() returned {type(out).__name__}: expected a dict of its signals")
+        if missing := [s for s in self.signals if s not in out]:
+            raise ProtocolError(f"{self.name}.outputs() lacks {missing}, declared in its signals")
+        if undeclared := [s for s in out if s not in self.signals]:
+            raise ProtocolError(f"{self.name}.outputs() returns {undeclared}, not declared in its signals {list(self.signals)}")
+        for s in self.signals:
+            if np.shape(out[s]) != self.shape[:1]:
+                raise ProtocolError(f"{self.name}.outputs()['{s}'] has shape {np.shape(out[s])}: expected (B,) = "
+                                    f"({self.shape[0]},)")
+        return out
+
+    def derivative(self, xhat: np.ndarray, y: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        return self._state("derivative", self.inner.derivative(xhat, y, tau))
+
+    def step(self, xhat: np.ndarray, y: np.ndarray, tau: np.ndarray, k: int) -> np.ndarray:
+        return self._state("step", self.inner.step(xhat, y, tau, k))
+
+    def _state(self, member: str, value: Any) -> np.ndarray:
+        if not isinstance(value, np.ndarray) or value.shape != self.shape:
+            raise ProtocolError(f"{self.name}.{member}() returned {type(value).__name__} of shape {np.shape(value)}: "
+                                f"expected an array (B, n_state) = {self.shape}")
+        return value
 
 
 class CustomTuning(BaseModel):
