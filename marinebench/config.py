@@ -273,6 +273,8 @@ class SweepParam(BaseModel):
         outside = [v for v in [*self.probes, *(self.trend or ())] if not lo <= v <= hi]
         if outside:
             raise ValueError(f"probe/trend values {outside} outside the range {self.range}")
+        if repeated := sorted({v for v in self.probes if self.probes.count(v) > 1}):  # the same table row twice
+            raise ValueError(f"probes {self.probes}: {repeated} given more than once")
         if self.trend is not None and self.trend[0] >= self.trend[1]:
             raise ValueError(f"trend {self.trend}: the lower end must be below the upper")
         return self

@@ -47,6 +47,8 @@ def test_one_seed_has_no_intervals_and_bad_probes_are_refused():
     assert "One run per point" in t and row(t, "k", "a", "z", "0.75")[4:] == ["6.25", "-37.5 %"]
     with pytest.raises(ValueError, match="outside the range"):
         SweepParam(key="k", range=(0, 1), probes=[1.5])
+    with pytest.raises(ValueError, match=r"\[0.5\] given more than once"):  # before: the same table row twice
+        SweepParam(key="k", range=(0, 1), probes=[0.5, 0.2, 0.5])
     with pytest.raises(ValueError, match="lower end"):
         SweepParam(key="k", range=(0, 1), trend=(0.8, 0.2))
 
