@@ -35,17 +35,26 @@ def load(path: str | Path, sets: Sequence[str] = (), profile: str | None = None)
     return load_checked(path, [sets] if isinstance(sets, str) else list(sets), profile)[0]
 
 
-def run(experiment: Experiment, traces: bool = True) -> RunResult:
+def run(experiment: Experiment | str | Path, traces: bool = True) -> RunResult:
     """Simulate every variant x seed of an experiment in one batch (``traces``: keep the decimated traces
-    the figures need: seed 0 of each variant, ``result.traced`` are their run indices)."""
+    the figures need: seed 0 of each variant, ``result.traced`` are their run indices). A path is loaded first,
+    as :func:`load` does with no overrides."""
+    from marinebench.config import Experiment
     from marinebench.experiments.runner import run as run_experiment
 
+    if isinstance(experiment, str | Path):
+        experiment = load(experiment)
+    if not isinstance(experiment, Experiment):
+        raise TypeError(f"run() takes an Experiment (marinebench.load(path)) or a path, not {type(experiment).__name__}")
     return run_experiment(experiment, traces=traces)
 
 
 def write(result: RunResult, out_dir: str | Path, config: str | Path | None = None) -> Path:
     """Write ``config.resolved.yaml``, ``manifest.json``, ``metrics.csv``, ``table.md`` and ``figures/``
     atomically to ``out_dir``, as ``marinebench run`` does (``config``: the file to name in the manifest)."""
+    from marinebench.experiments.runner import RunResult
     from marinebench.results.outputs import write_run
 
+    if not isinstance(result, RunResult):
+        raise TypeError(f"write() takes the RunResult of marinebench.run(), not {type(result).__name__}")
     return write_run(result, Path(out_dir), {"experiment": Path(config)} if config is not None else {})

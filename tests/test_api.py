@@ -110,3 +110,16 @@ def test_a_multi_scenario_run_stacks_its_parts_and_counts_their_cost():
     assert list(s3.traced) == [0] and s3.traces[0].size > 0  # seed 0 of its one variant is drawn
     untraced = mb.run(exp.part("S3"), traces=False)
     assert untraced.traced.size == 0 and untraced.traces[0].size == 0
+
+
+def test_run_takes_a_path_and_wrong_arguments_are_a_type_error(tmp_path):
+    """``mb.run("configs/x.yaml")`` loads the file (before: AttributeError 'str' object has no attribute
+    'scenarios'); anything else but an Experiment, and a write of anything but a RunResult, is a TypeError."""
+    tiny = tmp_path / "tiny.yaml"
+    tiny.write_text(f"from: {CONFIG}\nseeds: 1\nscenario: {{horizon: 160}}\n")
+    assert len(mb.run(tiny, traces=False).metrics) == len(mb.run(mb.load(tiny), traces=False).metrics) > 0
+    with pytest.raises(TypeError, match="run\\(\\) takes an Experiment .* not dict"):
+        mb.run({"seeds": 1})
+    with pytest.raises(TypeError, match="write\\(\\) takes the RunResult .* not NoneType"):
+        mb.write(None, tmp_path / "w")
+    assert not (tmp_path / "w").exists()
