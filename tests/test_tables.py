@@ -100,6 +100,7 @@ def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():
     assert listed["rise"].startswith("- `rise` (S1, S2-C1, S2-C2): kind=rise, feedback=measured")
     assert listed["cdo_srise"].startswith("- `cdo_srise` (S1, S2-C1, S2-C2, S3): kind=srise")
     assert "depth={}" not in listed["rise"] and "None" not in listed["rise"]
+    assert "preset=subjugator" in listed["rise"] and "preset" not in listed["cdo_srise"]  # RISE's setting, not S+RISE's
 
 
 def test_a_study_table_states_each_scenarios_windows_when_they_differ():

@@ -57,8 +57,11 @@ def _error_text(exp: Experiment) -> str:
 
 
 def settings_text(settings) -> str:
-    """``key=value, ...`` of an observer or controller, leaving out unset (None) and empty settings."""
-    return ", ".join(f"{k}={val}" for k, val in settings.model_dump().items() if val is not None and val != {})
+    """``key=value, ...`` of an observer or controller, leaving out unset (None) and empty settings and those another
+    kind reads (a model's ``ONLY_FOR``: RISE's ``preset`` is not shown for S+RISE or a custom controller)."""
+    only_for = getattr(type(settings), "ONLY_FOR", {})
+    return ", ".join(f"{k}={val}" for k, val in settings.model_dump().items()
+                     if val is not None and val != {} and settings.kind in only_for.get(k, (settings.kind,)))
 
 
 def fmt(x: float) -> str:
