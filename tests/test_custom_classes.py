@@ -114,6 +114,19 @@ REFUSED = {  # a class file written beside the example (from the example's earth
                 "Half is discrete but lacks step"),
     "no_derivative": (lambda eso: "class Half:\n" + PROTOCOL + "    def step(self): pass\n", "Half",
                       "Half lacks derivative (or discrete = True and step)"),
+    # the protocol's names and size, checked as such: before, a string was read as its letters ("lacks ['s', 'i',
+    # ...]"), an empty tuple surfaced as unknown metric signals, and a repeated name or n_state = "9" passed
+    "signals_a_string": (lambda eso: eso.replace('signals = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")',
+                                                'signals = "sigma_u"'), "EarthFrameEso",
+                         "EarthFrameEso.signals is 'sigma_u': expected a tuple of names, e.g. ('u', 'v')"),
+    "signals_empty": (lambda eso: eso.replace('signals = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")', "signals = ()"),
+                      "EarthFrameEso", "EarthFrameEso.signals is empty"),
+    "signals_twice": (lambda eso: eso.replace('signals = ("u", "v",', 'signals = ("u", "u", "v",'), "EarthFrameEso",
+                      "EarthFrameEso.signals names ['u'] more than once"),
+    "kinds_a_string": (lambda eso: eso.replace('("open_loop_asv", "dp_supply")', '"open_loop_asv"'), "EarthFrameEso",
+                       "EarthFrameEso.scenario_kinds is 'open_loop_asv': expected a tuple of names, e.g. ('open_loop_asv',)"),
+    "n_state_text": (lambda eso: eso.replace("n_state = 9", 'n_state = "9"'), "EarthFrameEso",
+                     "EarthFrameEso.n_state is '9': expected a whole number >= 1"),
 }
 
 

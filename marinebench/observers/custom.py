@@ -8,7 +8,7 @@ protocol of :mod:`marinebench.observers.base`:
 ``scenario_kinds``
     the world kinds it applies to: ``open_loop_asv`` (CyberShip II) and/or ``dp_supply`` (Torben's DP world);
 ``signals``
-    the names of the estimates ``outputs`` returns (``u``, ``v``, ``r``, ``sigma_u``, ... ``x``, ``b_x``, ...);
+    a tuple of the names of the estimates ``outputs`` returns (``u``, ``v``, ``r``, ``sigma_u``, ... ``x``, ``b_x``, ...);
 ``__init__(self, params: list[dict], plant, dt: float)``
     one ``params`` mapping per run (B runs); ``plant`` is the observers' vessel model (``M``, ``Minv``, ``D``,
     ``params``); ``dt`` the engine step;
@@ -29,7 +29,7 @@ manifest. With ``sweep --dask``, the file must be at the same path on the worker
 from __future__ import annotations
 
 import math
-from numbers import Real
+from numbers import Integral, Real
 from typing import Any, Literal
 
 import numpy as np
@@ -51,10 +51,32 @@ def observer_class(source: str) -> type:
         raise ValueError(f"{name} is discrete but lacks step: see marinebench/observers/custom.py")
     if not getattr(cls, "discrete", False) and not hasattr(cls, "derivative"):
         raise ValueError(f"{name} lacks derivative (or discrete = True and step): see marinebench/observers/custom.py")
+    names(f"{name}.scenario_kinds", cls.scenario_kinds, "('open_loop_asv',)")
+    names(f"{name}.signals", cls.signals)
+    whole_number(f"{name}.n_state", cls.n_state)
     unknown = set(cls.scenario_kinds) - set(SCENARIO_KINDS)
     if unknown:
         raise ValueError(f"{name}.scenario_kinds: {sorted(unknown)} (custom observers apply to {', '.join(SCENARIO_KINDS)})")
     return cls
+
+
+def names(what: str, value: Any, example: str = "('u', 'v')") -> tuple[str, ...]:
+    """``value`` as a tuple of distinct names (``signals``, ``scenario_kinds``); a ProtocolError for a single string
+    (which would be read as its letters), an empty or repeated entry, or anything else."""
+    if isinstance(value, str) or not isinstance(value, tuple | list) or not all(isinstance(v, str) for v in value):
+        raise ProtocolError(f"{what} is {value!r}: expected a tuple of names, e.g. {example}")
+    if not value:
+        raise ProtocolError(f"{what} is empty: expected a tuple of names, e.g. {example}")
+    if repeated := sorted({v for v in value if value.count(v) > 1}):
+        raise ProtocolError(f"{what} names {repeated} more than once")
+    return tuple(value)
+
+
+def whole_number(what: str, value: Any) -> int:
+    """``value`` as an int if it is a whole number >= 1 (``n_state``; numpy's integers too); a ProtocolError otherwise."""
+    if not isinstance(value, Integral) or isinstance(value, bool) or value < 1:
+        raise ProtocolError(f"{what} is {value!r}: expected a whole number >= 1")
+    return int(value)
 
 
 def check_built(observer: Any, n_runs: int) -> None:
@@ -82,7 +104,8 @@ class Checked:
 
     def __init__(self, inner: Any, n_runs: int) -> None:
         self.inner, self.name = inner, type(inner).__name__
-        self.signals, self.n_state = tuple(inner.signals), int(inner.n_state)
+        self.signals = names(f"{self.name}.signals", inner.signals)
+        self.n_state = whole_number(f"{self.name}.n_state", inner.n_state)
         self.discrete = bool(getattr(inner, "discrete", False))
         self.shape = (n_runs, self.n_state)
 
