@@ -22,7 +22,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-from marinebench.errors import ConfigError, MarinebenchError, StiffnessError
+from marinebench.errors import ConfigError, MarinebenchError, StiffnessError, UserCodeError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Simulation benchmarks for marine-vehicle observers.")
 # options that run and sweep share
@@ -412,7 +412,7 @@ def sweep(
         _claims_verdict(require_claims, known)
         return
     t0 = _time.perf_counter()
-    metrics, summed, ran, wall, executor = _simulate_sweep(exp, target, chunk_size, dask, workers, jobs, quiet)
+    metrics, summed, ran, wall, executor = _simulate_sweep(exp, config, target, chunk_size, dask, workers, jobs, quiet)
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
@@ -480,11 +480,12 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
     return base, exp, params
 
 
-def _simulate_sweep(exp, target: Path, chunk_size: int, dask: str | None, workers: int | None, jobs: int,
+def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str | None, workers: int | None, jobs: int,
                     quiet: bool) -> tuple:
     """sweep: simulate the points in batches of ``chunk_size`` (in this process, local worker processes or on
     Dask) under a progress bar; returns (metrics, batch seconds summed, batches run, wall seconds, executor). An
-    interruption exits, keeping the finished batches for the same command to resume from."""
+    interruption exits, keeping the finished batches for the same command to resume from; a class of the user's
+    failing in this process is one line naming ``config``, as in ``run``."""
     import time as _time
     from contextlib import nullcontext
 
@@ -503,8 +504,11 @@ def _simulate_sweep(exp, target: Path, chunk_size: int, dask: str | None, worker
             task = bar.add_task("sweep", total=1)
             executor = pool.describe() if pool is not None else "this process"
             t_sim = _time.perf_counter()
-            metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
-                                               on_start=lambda k: bar.update(task, total=k), pool=pool)
+            try:
+                metrics, summed, ran = run_chunked(exp, target, chunk_size, progress=lambda k: bar.advance(task, k),
+                                                   on_start=lambda k: bar.update(task, total=k), pool=pool)
+            except UserCodeError as exc:
+                raise UserCodeError(f"{config}: {exc}") from None
             wall = _time.perf_counter() - t_sim
             bar.update(task, completed=bar.tasks[0].total)
     except KeyboardInterrupt as exc:

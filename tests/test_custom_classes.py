@@ -238,19 +238,34 @@ def test_a_custom_observer_answering_wrong_while_running_is_one_line(example, tm
     """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py ``Checked``),
     not only at validation: a class that later drops a signal or changes a shape is one line, and nothing is written."""
     member, edit, message = LATE_ANSWERS[case]
-    source = example.parent / "earth_eso.py"
-    text = source.read_text()
-    head = f"    def {member}(self"
-    assert text.count(head) == 1
-    text = text.replace(head, f"    def {member}(self, *args):\n        out = self._{member}(*args)\n"
-                              "        self.calls = getattr(self, 'calls', 0) + 1\n"
-                              f"        if self.calls > 400:\n            {edit}\n        return out\n\n    def _{member}(self")
-    source.write_text(text)
+    _answer_late(example.parent / "earth_eso.py", member, edit)
     res = runner.invoke(app, ["run", str(example), "--seeds", "1", "--set", "scenario.horizon=8", "--out",
                               str(tmp_path / "out"), "--quiet", "--jobs", "1"])
     assert res.exit_code == 2 and res.output.strip() == (
         f"error: {example}: {message} (a class of your own, while the runs were simulated)"), res.output
     assert not (tmp_path / "out").exists()
+
+
+def test_a_custom_observer_answering_wrong_in_a_sweep_is_one_line_naming_the_config(example, tmp_path):
+    """The same in ``sweep``, simulated in this process: named by the config, as ``run`` names it (before, the
+    line lacked it)."""
+    member, edit, message = LATE_ANSWERS["dropped"]
+    _answer_late(example.parent / "earth_eso.py", member, edit)
+    res = runner.invoke(app, ["sweep", "--config", str(example), "omega", "--n", "2", "--seeds", "1", "--horizon", "8",
+                              "--jobs", "1", "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {example}: {message} (a class of your own, while the runs were simulated)"), res.output
+
+
+def _answer_late(source, member: str, edit: str) -> None:
+    """Edit the example's class so that its ``member`` answers through ``edit`` (on ``out``) after 400 calls."""
+    text = source.read_text()
+    head = f"    def {member}(self"
+    assert text.count(head) == 1
+    source.write_text(text.replace(head, f"    def {member}(self, *args):\n        out = self._{member}(*args)\n"
+                                         "        self.calls = getattr(self, 'calls', 0) + 1\n"
+                                         f"        if self.calls > 400:\n            {edit}\n        return out\n\n"
+                                         f"    def _{member}(self"))
 
 
 def test_a_max_rate_of_zero_sets_no_step_limit_and_is_accepted(example):
