@@ -235,7 +235,7 @@ LATE_ANSWERS = {  # what earth_eso.py's outputs/derivative return after 400 call
 
 @pytest.mark.parametrize("case", sorted(LATE_ANSWERS))
 def test_a_custom_observer_answering_wrong_while_running_is_one_line(example, tmp_path, case):
-    """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py ``Checked``),
+    """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py ``CheckedObserver``),
     not only at validation: a class that later drops a signal or changes a shape is one line, and nothing is written."""
     member, edit, message = LATE_ANSWERS[case]
     _answer_late(example.parent / "earth_eso.py", member, edit)
@@ -335,7 +335,7 @@ def test_a_broken_custom_controller_is_one_line_naming_file_and_key(controller_e
 @pytest.mark.parametrize(("edit", "got"), [("[:, :1]", "ndarray of shape (2, 1)"), ("[:1]", "ndarray of shape (1, 2)"),
                                            (".sum()", "float64 of shape ()"), (".tolist() and None", "NoneType of shape ()")])
 def test_a_custom_controller_answering_wrong_while_running_is_one_line(controller_example, tmp_path, edit, got):
-    """A custom controller's command is checked at every control step (controllers/spec.py ``Checked``): one
+    """A custom controller's command is checked at every control step (controllers/spec.py ``CheckedController``): one
     column, one row or a scalar, after the first 50 commands, is one line; before, numpy broadcast it to every run
     and DOF and the run finished with rc 0 (wrong numbers)."""
     source = controller_example.parent / "pid.py"

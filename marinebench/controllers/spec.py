@@ -6,7 +6,7 @@ is built as ``Class(params, batch)`` and implements ``command(e1, e1_dot, h) -> 
 ``e1 = eta_d - eta`` and their rates, ``(batch, 2)`` for (depth [m], yaw [rad]), and the control period ``h`` [s];
 ``tau (batch, 2)`` in N and N m (before ``output_scale``; thrust allocation and saturation follow). It keeps its
 own state (integrals) between calls, one row per run. Its commands are checked to be ``(batch, 2)`` at validation
-and at every control step (:class:`Checked`)."""
+and at every control step (:class:`CheckedController`)."""
 
 from __future__ import annotations
 
@@ -100,7 +100,7 @@ class ControllerSpec(BaseModel):
 
     def build(self, batch: int):
         if self.kind == "custom":
-            return Checked(user_class(self.source, CUSTOM_MEMBERS)(self.params, batch), batch)
+            return CheckedController(user_class(self.source, CUSTOM_MEMBERS)(self.params, batch), batch)
         return (SRise if self.kind == "srise" else Rise)(self.gains(), batch)
 
 
@@ -108,13 +108,13 @@ def check_built(controller: Any, h: float) -> None:
     """A custom controller built for one run, asked once for its command at zero error (a ProtocolError unless it is
     a finite (1, 2) array): a mistake in the class is then a config error before anything runs."""
     zero = np.zeros((1, 2))
-    checked = controller if isinstance(controller, Checked) else Checked(controller, 1)
+    checked = controller if isinstance(controller, CheckedController) else CheckedController(controller, 1)
     tau = checked.command(zero, zero.copy(), h)
     if not np.all(np.isfinite(tau)):
         raise ProtocolError(f"{checked.name}.command() at zero error returned {tau.tolist()!r}: expected finite values")
 
 
-class Checked:
+class CheckedController:
     """A built custom controller whose every command is checked to be ``(batch, 2)`` numbers (depth, yaw), at
     validation (:func:`check_built`) and at every control step of the runs: one column, one row or a scalar would
     otherwise be broadcast to every run and DOF (wrong numbers, no error). A wrong answer is a :class:`ProtocolError`;

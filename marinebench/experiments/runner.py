@@ -22,7 +22,7 @@ from marinebench.models.rov import LeonardLike
 from marinebench.models.supply import SupplyVessel, bis_scale
 from marinebench.observers.base import chain_response
 from marinebench.observers.bejarano import BejaranoObserver
-from marinebench.observers.custom import Checked, observer_class
+from marinebench.observers.custom import CheckedObserver, observer_class
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.liu_eso import LiuEsoObserver
@@ -87,7 +87,7 @@ def make_observer(kind: str, tunings: list, scenario, plant, lumped: bool = Fals
     if kind == "liu_eso":
         return LiuEsoObserver(tunings, plant.Minv)
     if kind == "custom":
-        return Checked(observer_class(tunings[0].source)([t.params for t in tunings], plant, scenario.dt), len(tunings))
+        return CheckedObserver(observer_class(tunings[0].source)([t.params for t in tunings], plant, scenario.dt), len(tunings))
     if kind in ("npo", "resetting_fto"):
         model = plant if isinstance(plant, SupplyVessel) else SupplyVessel(linear_dp_model(plant.params))
         return DpObserver(tunings, model, scenario.dt, bis_scale(model.params), lumped)

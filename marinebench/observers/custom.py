@@ -21,9 +21,9 @@ protocol of :mod:`marinebench.observers.base`:
 The class is loaded and checked when the config is validated, so a missing file, a class without these
 members, a world it does not apply to, or an instance whose ``max_rate``, ``init``, ``outputs``, ``derivative`` or
 ``step`` returns the wrong thing or raises (:func:`check_built`) is a one-line config error. While the runs are
-simulated every answer is checked again (:class:`Checked`), and an exception the class raises is one line naming
-its file and line. Runs record the source's SHA-256 in the
-manifest. With ``sweep --dask``, the file must be at the same path on the workers.
+simulated every answer is checked again (:class:`CheckedObserver`), and an exception the class raises is one line
+naming its file and line. Runs record the source's SHA-256 in the manifest. With ``sweep --dask``, the file must be
+at the same path on the workers.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def check_built(observer: Any, n_runs: int) -> None:
     (B,) and no other, ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape
     (B, n_state). Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong
     numbers."""
-    checked = observer if isinstance(observer, Checked) else Checked(observer, n_runs)
+    checked = observer if isinstance(observer, CheckedObserver) else CheckedObserver(observer, n_runs)
     checked.max_rate()
     x0 = checked.init()
     checked.outputs(x0)
@@ -96,7 +96,7 @@ def check_built(observer: Any, n_runs: int) -> None:
         checked.derivative(x0.copy(), y, tau)
 
 
-class Checked:
+class CheckedObserver:
     """A built custom observer whose every answer is checked against the protocol, at validation
     (:func:`check_built`) and at every step of the runs: a class that later drops a signal, changes a shape or
     returns a list would otherwise leave a stale or broadcast estimate in the results (wrong numbers, no error) or
