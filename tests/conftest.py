@@ -8,6 +8,8 @@ import pandas as pd
 import pytest
 import yaml
 
+from marinebench.results.tables import md_split
+
 ROOT = Path(__file__).resolve().parents[1]
 TORBEN_FIG3 = ROOT / "configs" / "torben_fig3.yaml"
 
@@ -21,7 +23,7 @@ def sorted_values(frame) -> list[float]:
 def md_row(table: str, *cells: str) -> list[str]:
     """The cells of the first row of a markdown ``table`` that starts with ``cells``."""
     for line in table.splitlines():
-        parts = [c.strip() for c in line.strip().strip("|").split("|")]
+        parts = md_split(line)
         if parts[: len(cells)] == list(cells):
             return parts
     raise AssertionError(f"no row {cells} in\n{table}")

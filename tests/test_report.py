@@ -106,6 +106,9 @@ def test_markdown_subset_becomes_the_right_html():
         '<div class="scroll"><table><thead><tr><th>a</th><th>b</th></tr></thead><tbody>',
         "<tr><td>1</td><td><code>c</code></td></tr>", "</tbody></table></div>", "<p>text</p>"]
     assert markdown_to_html("###### six") == "<h6>six</h6>"  # h7 does not exist
+    # a pipe escaped in a cell (results/tables.py md_cell: a label "RISE | old", a claim about |e_u|) stays in its cell
+    table = markdown_to_html("| claim | n |\n|---|---|\n| \\|e_u\\| \\| x | 2 |")
+    assert "<tr><td>|e_u| | x</td><td>2</td></tr>" in table
 
 
 def test_report_shows_each_manifest_and_the_claims_overview(report, tmp_path):
@@ -144,6 +147,7 @@ def test_claims_overview_counts_what_holds_and_lists_what_fails(tmp_path):
         (tmp_path / name / "manifest.json").write_text(json.dumps({"claims": entries}))
     md = claims_overview({n: tmp_path / n for n in ("x", "y", "z", "w")})
     rows = [line for line in md.splitlines() if line.startswith(("| x", "| y", "| z", "| w"))]
-    assert rows == ["| x | 1\u00a0of\u00a03 | c / d |", "| z | 1\u00a0of\u00a01 |  |",
+    # c | d escaped, so that the report shows it in one cell
+    assert rows == ["| x | 1\u00a0of\u00a03 | c \\| d |", "| z | 1\u00a0of\u00a01 |  |",
                     "| w | 1\u00a0of\u00a02 (1 narrowly) | g < h (narrowly) |"]
     assert claims_overview({"y": tmp_path / "y"}) == ""

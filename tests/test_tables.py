@@ -111,3 +111,21 @@ def test_a_study_table_states_each_scenarios_windows_when_they_differ():
     assert f"Ours: {text.format(40)}. Mean" in study_table(same, summary)
     table = study_table(load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table.metrics=[rmse]"])[0], summary)
     assert f"Ours: {text.format(40)} in S1, S2-C1, S2-C2; {text.format(44)} in S3. Mean" in table
+
+
+def test_a_pipe_in_a_label_or_a_claim_stays_in_its_cell(tmp_path):
+    """A variant's label "RISE | old" heads one column of a study table, and a claim about |e_u| is one cell of
+    claims.md (escaped as \\|); before, each pipe split the row, so the header had more columns than the rows."""
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    res = CliRunner().invoke(app, ["run", str(ROOT / "configs" / "tijjani_table3.yaml"), "--profile", "quick", "--seeds",
+                                   "1", "--set", "scenarios.*.horizon=2", "--set", "variants.0.label=RISE | old", "--set", 'claims.0.text="|e_u| | x"',
+                                   "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    table = (tmp_path / "tijjani_table3" / "table.md").read_text().splitlines()
+    header = md_row("\n".join(table), "index")
+    assert header[2:4] == ["RISE | old ours", "RISE | old paper"]
+    assert len(header) == table[table.index(next(line for line in table if line.startswith("| index"))) + 1].count("---")
+    assert md_row((tmp_path / "tijjani_table3" / "claims.md").read_text(), "1")[2:4] == ["|e_u| | x", "Table III, Sec. V"]

@@ -30,7 +30,7 @@ from marinebench.experiments.settings import tuning
 from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
 from marinebench.plotting.figures import plain_log_labels, save
 from marinebench.results.claims import NARROW_NOTE, Check, format_check, on_seeds, statistic_note
-from marinebench.results.tables import simulated_on
+from marinebench.results.tables import md_row, simulated_on
 
 Surfaces = dict[tuple[str, str], pd.DataFrame]
 
@@ -212,8 +212,8 @@ def grid_claims_markdown(exp: Experiment, results: list[GridClaim], own: dict[st
     for i, r in enumerate(results, 1):
         mark = next((v for v in r.slices if own.get(r.other) is not None and np.isclose(v, own[r.other])), None)
         note = f" (config's {r.other} = {mark:.3g}: {'holds' if r.holds_at(mark) else 'fails'})" if mark is not None else ""
-        lines.append(f"| {i} | {r.claim.text}{note} | {r.claim.source} | {r.metric} | {r.claim.param} | "
-                     f"{_values(r.other, r.holding)} | {_values(r.other, r.failing)} |")
+        lines.append(md_row([i, f"{r.claim.text}{note}", r.claim.source, r.metric, r.claim.param,
+                             _values(r.other, r.holding), _values(r.other, r.failing)]))
     lines += ["", "| # | slice, group | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         for value, checks in r.slices.items():

@@ -22,7 +22,7 @@ from scipy.stats import t as student_t
 
 from marinebench.claims import LessClaim, NearPaperClaim, OrderClaim, WithinClaim
 from marinebench.config import Experiment
-from marinebench.results.tables import simulated_on
+from marinebench.results.tables import md_row, simulated_on
 
 
 @dataclass(frozen=True)
@@ -301,7 +301,7 @@ def markdown(exp: Experiment, results: list[ClaimResult], where: str = "scenario
              "| # | verdict | claim | source | metric |", "|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         verdict = _verdict(r.holds, r.narrow) if r.not_checked is None else f"not checked: {r.not_checked}"
-        lines.append(f"| {i} | {verdict} | {r.claim.text} | {r.claim.source} | {r.metric or '–'} |")
+        lines.append(md_row([i, verdict, r.claim.text, r.claim.source, r.metric or "–"]))
     lines += ["", f"| # | {where} | signal | means | statistic [95% CI] | needs | check |", "|---|---|---|---|---|---|---|"]
     for i, r in enumerate(results, 1):
         if not r.checks and r.not_checked is None:
@@ -314,7 +314,7 @@ def format_check(i: int, c: Check, where: str | None = None) -> str:
     """One row of the checks table of claim ``i`` (``where``: the first column, default the check's own)."""
     means = ", ".join(f"{v} {_num(m)}" for v, m in c.means.items())
     stat = _num(c.statistic) + (f" [{_num(c.ci[0])}, {_num(c.ci[1])}]" if c.ci else "")
-    return f"| {i} | {where or c.where} | {c.signal} | {means} | {stat} | {c.needs} | {_verdict(c.holds, c.firm is False)} |"
+    return md_row([i, where or c.where, c.signal, means, stat, c.needs, _verdict(c.holds, c.firm is False)])
 
 
 def manifest_entries(results: list[ClaimResult]) -> list[dict]:

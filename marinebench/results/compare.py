@@ -36,6 +36,7 @@ from marinebench.config import AnyScenario, Metric
 from marinebench.errors import MarinebenchError
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.stored import read_manifest, read_metrics, read_resolved
+from marinebench.results.tables import md_row
 
 Interval = Literal["bootstrap", "t"]  # the CI of a paired comparison (compare --interval)
 HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
@@ -467,7 +468,7 @@ def _row(r, paired: bool) -> str:
         held = {1.0: "holds", 0.0: "fails"}
         base, cand = (held.get(v, "–") + (" (narrowly)" if r.narrow in (side, "both") else "")
                       for v, side in ((r.baseline, "baseline"), (r.candidate, "candidate")))
-        return f"| {ICONS[r.verdict]} | {r.experiment} | – | – | {r.signal} | claim | {base} | {cand} | – | – | – |"
+        return md_row([ICONS[r.verdict], r.experiment, "–", "–", r.signal, "claim", base, cand, "–", "–", "–"])  # signal: its text
     rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
     if np.isnan(r.ci_low):
         ci = "–"

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from marinebench.results.compare import compare_dirs, find_results, to_markdown
 from marinebench.results.stored import read_manifest, read_text
+from marinebench.results.tables import md_row, md_split
 
 CSS = """
 body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
@@ -40,7 +41,7 @@ def markdown_to_html(md: str) -> str:
         if line.startswith("|"):
             rows = []
             while i < len(lines) and lines[i].startswith("|"):
-                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                cells = md_split(lines[i])
                 if not all(set(c) <= set("-: ") for c in cells):
                     rows.append(cells)
                 i += 1
@@ -89,8 +90,8 @@ def claims_overview(dirs: dict[str, Path]) -> str:
             narrow = sum(bool(c.get("narrowly")) for c in held)
             failing = [c["text"] + (" (narrowly)" if c.get("narrowly") else "")
                        for c in claims if not c["holds"] and not c.get("not_checked")]
-            rows.append(f"| {name} | {len(held)}\u00a0of\u00a0{len(claims)}" + (f" ({narrow} narrowly)" if narrow else "")
-                        + " | " + "; ".join(failing).replace("|", "/") + " |")
+            rows.append(md_row([name, f"{len(held)}\u00a0of\u00a0{len(claims)}" + (f" ({narrow} narrowly)" if narrow else ""),
+                                "; ".join(failing)]))
     if not rows:
         return ""
     return "\n".join(["## The papers' claims", "", "Checked on our runs (each experiment's claims.md below).", "",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pandas as pd
 
@@ -64,6 +65,22 @@ def settings_text(settings) -> str:
                      if val is not None and val != {} and settings.kind in only_for.get(k, (settings.kind,)))
 
 
+def md_cell(text: object) -> str:
+    """``text`` as one cell of a markdown pipe table: a ``|`` in it (a label "RISE | old", a claim about |e_u|) escaped
+    as ``\\|``, so that it does not split the row; a line break as a space."""
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def md_row(cells: list) -> str:
+    """One row of a markdown pipe table, every cell through :func:`md_cell`."""
+    return "| " + " | ".join(md_cell(c) for c in cells) + " |"
+
+
+def md_split(line: str) -> list[str]:
+    """The cells of a row :func:`md_row` wrote, unescaped (``report`` reads table.md and claims.md back)."""
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+
+
 def fmt(x: float) -> str:
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.3g}"
 
@@ -107,7 +124,7 @@ def _preamble(exp: Experiment, windows: str, where: str, paper) -> list[str]:
 
 
 def _grid(header: list[str]) -> list[str]:
-    return ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return ["", md_row(header), "|" + "---|" * len(header)]
 
 
 def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
@@ -141,7 +158,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
                     row.append(_cell(_shown(s.loc[key], d)) if key in s.index else "–")
                     if paper is not None:
                         row.append(fmt(paper.values.get(v.name, {}).get(f"{scen}/{name}/{sig}", float("nan"))))
-                lines.append("| " + " | ".join(row) + " |")
+                lines.append(md_row(row))
     lines += ["", "Variants:", ""]
     for v in exp.variants:
         where = ", ".join(v.scenarios or exp.scenario_names)
@@ -176,7 +193,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
             cells.append(cell(name, sig))
             if name == paper_of:
                 cells.append(fmt(paper.values.get(paper_key, {}).get(sig, float("nan"))))
-        return "| " + " | ".join(cells) + " |"
+        return md_row(cells)
 
     def ours(variant: str):
         def cell(name, sig):
