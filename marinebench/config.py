@@ -5,9 +5,10 @@ mapping to file and key) and the preflight checks are in :mod:`marinebench.loadi
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Discriminator, Field, Tag, model_validator
+from pydantic import BaseModel, Discriminator, Field, Tag, field_validator, model_validator
 
 from marinebench.claims import Claim, SweepClaim
 from marinebench.controllers.spec import ControllerSpec
@@ -310,6 +311,14 @@ class SweepSpec(BaseModel):
     signals: list[str] | None = Field(None, min_length=1, description="the metric's signals to tabulate and plot (default: all)")
     n: int = Field(100, ge=2, le=100000, description="points per parameter")
     claims: list[SweepClaim] = Field(default_factory=list, description="the paper's trends, checked on the curves")
+
+    @field_validator("params", "groups")
+    @classmethod
+    def _names(cls, value: dict) -> dict:
+        """Parameter and group names name the sweep's points (variants ``name=value``), its folder and table rows."""
+        if bad := [name for name in value if not re.fullmatch(NAME, name)]:
+            raise ValueError(f"name {bad[0]!r}: use letters, digits and _ . + - (it names the sweep's points and folder)")
+        return value
 
     @model_validator(mode="after")
     def _check_claims(self) -> SweepSpec:

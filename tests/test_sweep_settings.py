@@ -270,3 +270,14 @@ def test_sweep_folder_names_keep_subsets_and_monte_carlo_sweeps_apart():
     long = sweep_suffix(exp, every, overrides=[f"scenario.events.{i}.force=[1e6, 2e6, 3e7]" for i in range(3)])
     assert long.startswith("_sweep_set-") and len(long) == len("_sweep_set-") + 8
     assert long != sweep_suffix(exp, every, overrides=[f"scenario.events.{i}.force=[1e6, 2e6, 4e7]" for i in range(3)])
+
+
+@pytest.mark.parametrize(("key", "value", "name"), [("sweep.params", '{"a/b": {key: k, range: [0, 1]}}', "a/b"),
+                                                    ("sweep.groups", '{"x | y": {gnss_sigma: 0.1}}', "x | y")])
+def test_sweep_parameter_and_group_names_are_names(key, value, name):
+    """They name the sweep's points (variants 'name=value'), its folder and rows of its tables: 'a/b' or 'x | y' is
+    refused at validation, naming the key; before, validate accepted them and the sweep failed on a point's name."""
+    res = CliRunner().invoke(app, ["validate", str(ROOT / "configs" / "torben_fig3.yaml"), "--set", f"{key}={value}",
+                                   "--set", "sweep.claims=[]"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: --set: {key}: name '{name}': use letters, digits and _ . + - (it names the sweep's points and folder)")
