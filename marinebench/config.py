@@ -21,7 +21,7 @@ from marinebench.observers.dp import DpObserver, NpoTuning, ResettingTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 from marinebench.rov_scenario import RovScenario
 from marinebench.scenario import Scenario
-from marinebench.settings import STRICT
+from marinebench.settings import NAME, STRICT
 
 ObserverTuning = Annotated[
     BejaranoTuning | LiuEsoTuning | NpoTuning | ResettingTuning | RovObserverSpec | CustomTuning, Field(discriminator="kind")
@@ -38,7 +38,6 @@ AnyScenario = Annotated[
     | Annotated[RovScenario, Tag("rov_tracking")],
     Discriminator(_scenario_kind),
 ]
-NAME = r"^[A-Za-z0-9_.+-]+$"
 DIAGNOSTICS = ("n_resets", "n_jumps", "log10_cond_mean", "cond_max")  # per-run observer diagnostics (DP observers)
 SIGNALS = ("u", "v", "r", "sigma_u", "sigma_v", "sigma_r")
 # What an error metric or a table covers when it names no signals: what the variants' observers estimate
@@ -389,6 +388,15 @@ class Experiment(BaseModel):
         description="named lists of dotted.key=value overrides, selected with `run --profile NAME` "
         "(e.g. a quick profile for CI)",
     )
+
+    @field_validator("scenarios", mode="before")
+    @classmethod
+    def _study_names(cls, value: Any) -> Any:
+        """A study's keys name its scenarios (metrics.csv, tables, 'scenario/metric/signal' keys)."""
+        names = [name for name in value if isinstance(name, str)] if isinstance(value, dict) else []  # else pydantic's error
+        if bad := [name for name in names if not re.fullmatch(NAME, name)]:
+            raise ValueError(f"name {bad[0]!r}: use letters, digits and _ . + - (it names the scenario in metrics.csv)")
+        return value
 
     @model_validator(mode="after")
     def _cross_references(self) -> Experiment:

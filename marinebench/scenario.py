@@ -18,7 +18,7 @@ from marinebench.batch import columns
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
 from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
 from marinebench.sensors.noise import Noise, NoiseBatch, NoNoise
-from marinebench.settings import STRICT
+from marinebench.settings import NAME, STRICT
 
 Vec3 = tuple[float, float, float]
 
@@ -78,7 +78,7 @@ class ScenarioBase(BaseModel):
     """What every world has: a name, a horizon and the engine step (with the checks they share)."""
 
     model_config = STRICT
-    name: str = Field(..., min_length=1)
+    name: str = Field(..., pattern=NAME, description="the world's name in metrics.csv and tables")
     description: str = ""
     horizon: float = Field(..., gt=0, description="simulated time [s]")
     dt: float = Field(..., gt=0, description="integration step [s]")

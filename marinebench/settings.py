@@ -12,6 +12,9 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 #: Every file-level model: an unknown key is an error (a typo must not be silently ignored), and so is a
 #: non-finite number (YAML's .inf / .nan would pass ``gt=0`` bounds and fail deep in a design or the engine).
 STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
+#: Names that flow into metrics.csv, tables and folder names (experiments, scenarios, variants, metrics, sweep
+#: parameters and groups): no spaces, slashes or pipes.
+NAME = r"^[A-Za-z0-9_.+-]+$"
 
 M = TypeVar("M", bound=BaseModel)
 

@@ -281,3 +281,14 @@ def test_sweep_parameter_and_group_names_are_names(key, value, name):
                                    "--set", "sweep.claims=[]"])
     assert res.exit_code == 2 and res.output.strip() == (
         f"error: --set: {key}: name '{name}': use letters, digits and _ . + - (it names the sweep's points and folder)")
+
+
+@pytest.mark.parametrize(("config", "key", "value", "message"), [
+    ("examples/first_experiment/asv_observers.yaml", "scenario.name", "a|b", "String should match pattern '^[A-Za-z0-9_.+-]+$'"),
+    ("configs/tijjani_table3.yaml", "scenarios", '{"S|1": {from: ../scenarios/rov_s1.yaml}}',
+     "name 'S|1': use letters, digits and _ . + - (it names the scenario in metrics.csv)")])
+def test_a_scenarios_name_is_a_name_too(config, key, value, message):
+    """A world's name (or a study's key, which names its scenario) fills metrics.csv's scenario column and the tables,
+    as a variant's name does: held to the same pattern (before: any text)."""
+    res = CliRunner().invoke(app, ["validate", str(ROOT / config), "--set", f"{key}={value}"])
+    assert res.exit_code == 2 and res.output.strip() == f"error: --set: {key}: {message}", res.output
