@@ -27,12 +27,15 @@ __version__ = "0.1.0"
 __all__ = ["load", "run", "write"]
 
 
-def load(path: str | Path, sets: Sequence[str] = (), profile: str | None = None) -> Experiment:
+def load(path: str | Path, sets: Sequence[str] | str | None = (), profile: str | None = None) -> Experiment:
     """Read, validate and preflight an experiment YAML (``sets``: ``dotted.key=value`` overrides, as
     ``--set``, a list, or one string; ``profile``: a named profile of the config, as ``--profile``)."""
     from marinebench.loading import load_checked
 
-    return load_checked(path, [sets] if isinstance(sets, str) else list(sets), profile)[0]
+    sets = [sets] if isinstance(sets, str) else list(sets or ())
+    if wrong := [s for s in sets if not isinstance(s, str)]:
+        raise TypeError(f"load(): each of sets is a 'dotted.key=value' string, not {wrong[0]!r}")
+    return load_checked(path, sets, profile)[0]
 
 
 def run(experiment: Experiment | str | Path, traces: bool = True) -> RunResult:

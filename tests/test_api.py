@@ -39,8 +39,12 @@ def test_bad_input_raises_a_config_error_naming_file_and_key(tmp_path):
 
 
 def test_one_override_may_be_a_plain_string():
-    """``sets="seeds=3"`` is one override, not a sequence of one-character ones."""
+    """``sets="seeds=3"`` is one override, not a sequence of one-character ones; None is none; anything but strings
+    is a TypeError that says what it takes (before: "argument of type 'int' is not iterable")."""
     assert mb.load(CONFIG, sets="seeds=3").seeds == 3
+    assert mb.load(CONFIG, sets=None).seeds == mb.load(CONFIG).seeds
+    with pytest.raises(TypeError, match="each of sets is a 'dotted.key=value' string, not 1"):
+        mb.load(CONFIG, sets=[1])
     with pytest.raises(ConfigError, match=r"--set: scenario\.dt: Input should be greater than 0"):
         mb.load(CONFIG, sets="scenario.dt=-1")
 
