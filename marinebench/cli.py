@@ -193,12 +193,14 @@ def run(
 ) -> None:
     """Run experiments; each writes config.resolved.yaml, manifest.json, metrics.csv, table.md, claims.md, figures/."""
     from marinebench.experiments.cluster import available_cores
-    from marinebench.results.writer import output_folder
+    from marinebench.results.writer import output_folder, replaceable
 
     base = out_dir if out_dir is not None else Path("results")
     with one_line_errors():
         configs = _distinct_targets(configs, base)
         loaded = [(c, *_load(c, set_ or [], seed, seeds, profile, traces=traces)) for c in configs]  # validate everything first
+        for c in configs:  # and that no one's files are where the results go, before anything runs
+            replaceable(_target(base, c))
     failing = 0
     try:
         with one_line_errors(), output_folder(base):
@@ -392,6 +394,7 @@ def sweep(
     from marinebench.experiments.sweep import GRID_N, discard_partial, inline_params, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
+    from marinebench.results.writer import replaceable
 
     _check_sweep_options(chunk_size, jobs, dask, n, horizon, grid, require_claims)
     _sweep_config(config)
@@ -407,6 +410,8 @@ def sweep(
         err.print(f"note: {config}: {note}", markup=False)
     target = (out_dir if out_dir is not None else Path("results")) / (
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
+    with one_line_errors():
+        replaceable(target)
     known = _up_to_date(exp, target, quiet) if resume else None
     if known is not None:
         _claims_verdict(require_claims, known)

@@ -151,11 +151,11 @@ def test_mean_ci_ignores_nan_and_single_value():
 def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
     target = tmp_path / "exp"
     with atomic_directory(target) as d:
-        (d / "a.txt").write_text("old")
+        (d / "manifest.json").write_text("old")
     with pytest.raises(RuntimeError), atomic_directory(target) as d:
-        (d / "a.txt").write_text("half")
+        (d / "manifest.json").write_text("half")
         raise RuntimeError("interrupted")
-    assert (target / "a.txt").read_text() == "old"
+    assert (target / "manifest.json").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
 
@@ -164,11 +164,11 @@ def test_atomic_directory_swaps_in_one_step_on_linux(tmp_path, monkeypatch):
     runs): os.replace, which would leave a moment without the folder, is not called."""
     target = tmp_path / "exp"
     with atomic_directory(target) as d:
-        (d / "a.txt").write_text("old")
+        (d / "manifest.json").write_text("old")
     monkeypatch.setattr(writer.os, "replace", lambda *a: pytest.fail("two-step rename used"))
     with atomic_directory(target) as d:
-        (d / "a.txt").write_text("new")
-    assert (target / "a.txt").read_text() == "new"
+        (d / "manifest.json").write_text("new")
+    assert (target / "manifest.json").read_text() == "new"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
 
@@ -178,8 +178,8 @@ def test_atomic_directory_falls_back_to_two_renames(tmp_path, monkeypatch):
     target = tmp_path / "exp"
     for text in ("old", "new"):
         with atomic_directory(target) as d:
-            (d / "a.txt").write_text(text)
-    assert (target / "a.txt").read_text() == "new"
+            (d / "manifest.json").write_text(text)
+    assert (target / "manifest.json").read_text() == "new"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
 
@@ -197,10 +197,10 @@ def test_a_killed_writers_temporary_folders_are_removed_by_the_next_write(tmp_pa
     kept = [f".exp.tmp-{owner}-live", f".exp.tmp-otherhost-{dead}-abc", f".other.tmp-{host}-{dead}-x"]
     for name in orphans + kept:
         (tmp_path / name).mkdir()
-        (tmp_path / name / "a.txt").write_text("half")
+        (tmp_path / name / "manifest.json").write_text("half")
     with atomic_directory(tmp_path / "exp") as d:
         assert d.name.startswith(f".exp.tmp-{owner}-")
-        (d / "a.txt").write_text("new")
+        (d / "manifest.json").write_text("new")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["exp", *kept])
 
 
@@ -339,3 +339,40 @@ def test_the_manifests_command_pastes_back_into_a_shell(monkeypatch):
     command = json.loads(writer.manifest())["command"]
     assert shlex.split(command) == ["marinebench", *argv[1:]]
     assert command.startswith("marinebench sweep c_eps --set 'sweep.params")
+
+
+@pytest.mark.parametrize("what", ["file", "folder", "link"])
+def test_someone_elses_file_or_folder_where_results_go_is_not_replaced(tmp_path, what):
+    """A results folder is written whole in place of the previous one; what is at that path and is not marinebench's
+    (a file, a folder without manifest.json, a symbolic link) is refused before anything runs and stays as it was.
+    Before, `run --out DIR` replaced DIR/<config stem> whatever it was (a source folder named like the config)."""
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    from .conftest import ROOT
+
+    target = tmp_path / "asv_observers"
+    if what == "file":
+        target.write_text("precious")
+    elif what == "folder":
+        target.mkdir()
+        (target / "important.py").write_text("code")
+    else:
+        (tmp_path / "elsewhere").mkdir()
+        target.symlink_to(tmp_path / "elsewhere")
+    before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    config = ROOT / "examples" / "first_experiment" / "asv_observers.yaml"
+    res = CliRunner().invoke(app, ["run", str(config), "--set", "scenario.horizon=6", "--seeds", "1", "--out",
+                                   str(tmp_path), "--quiet"])
+    said = {"file": "a file, not a results folder", "folder": "a folder of other files (no manifest.json)",
+            "link": "a symbolic link, not a results folder"}[what]
+    assert res.exit_code == 2 and res.output.startswith(f"error: {target}: {said}"), res.output
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
+    with pytest.raises(ConfigError, match="not replaced"), atomic_directory(target):  # the Python API's write too
+        pass
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with atomic_directory(empty) as d:  # an empty folder holds nothing to lose
+        (d / "manifest.json").write_text("{}")
+    assert (empty / "manifest.json").exists()

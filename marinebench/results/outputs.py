@@ -153,7 +153,7 @@ def redraw_figures(folder: Path) -> list[str]:
         raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
     exp, _ = load_experiment(folder / "config.resolved.yaml")
     frame = read_traces(folder / TRACES_FILE)
-    with atomic_directory(folder / "figures") as figdir:
+    with atomic_directory(folder / "figures", results=False) as figdir:
         for name in exp.scenario_names:
             part = exp.part(name)
             try:

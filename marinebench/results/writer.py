@@ -67,10 +67,34 @@ def output_folder(folder: Path, option: str = "--out") -> Iterator[None]:
         raise
 
 
-@contextmanager
-def atomic_directory(target: Path) -> Iterator[Path]:
-    """Yield a temporary directory that replaces ``target`` only if the block succeeds."""
+def replaceable(target: Path) -> None:
+    """Refuse (a :class:`~marinebench.errors.ConfigError` naming ``target``) to replace what is not marinebench's: a
+    results folder is written whole in place of the previous one, so ``target`` must be absent, an empty folder, or
+    a folder with a ``manifest.json`` (results of ``run`` or ``sweep``). A file, a symbolic link or a folder of other
+    things at that path (a config named after a source folder, ``--out .``) is someone's work; before, it was replaced
+    and lost."""
+    from marinebench.errors import ConfigError
+
     target = Path(target)
+    if target.is_symlink():
+        raise ConfigError(str(target), "", "a symbolic link, not a results folder: not replaced (remove it, or choose "
+                          "another --out)")
+    if not target.exists():
+        return
+    if not target.is_dir():
+        raise ConfigError(str(target), "", "a file, not a results folder: not replaced (move it, or choose another --out)")
+    if not (target / "manifest.json").is_file() and any(target.iterdir()):
+        raise ConfigError(str(target), "", "a folder of other files (no manifest.json), not marinebench's results: not "
+                          "replaced (move it, or choose another --out)")
+
+
+@contextmanager
+def atomic_directory(target: Path, results: bool = True) -> Iterator[Path]:
+    """Yield a temporary directory that replaces ``target`` only if the block succeeds (``results``: ``target`` is
+    a results folder, checked by :func:`replaceable` first; ``figures/`` inside one is not)."""
+    target = Path(target)
+    if results:
+        replaceable(target)
     target.parent.mkdir(parents=True, exist_ok=True)
     _remove_orphans(target)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-{_owner()}-", dir=target.parent))
