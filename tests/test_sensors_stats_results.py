@@ -152,8 +152,10 @@ def test_atomic_directory_keeps_old_results_on_failure(tmp_path):
     target = tmp_path / "exp"
     with atomic_directory(target) as d:
         (d / "manifest.json").write_text("old")
+        (d / "metrics.csv").write_text("")
     with pytest.raises(RuntimeError), atomic_directory(target) as d:
         (d / "manifest.json").write_text("half")
+        (d / "metrics.csv").write_text("")
         raise RuntimeError("interrupted")
     assert (target / "manifest.json").read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
@@ -165,9 +167,11 @@ def test_atomic_directory_swaps_in_one_step_on_linux(tmp_path, monkeypatch):
     target = tmp_path / "exp"
     with atomic_directory(target) as d:
         (d / "manifest.json").write_text("old")
+        (d / "metrics.csv").write_text("")
     monkeypatch.setattr(writer.os, "replace", lambda *a: pytest.fail("two-step rename used"))
     with atomic_directory(target) as d:
         (d / "manifest.json").write_text("new")
+        (d / "metrics.csv").write_text("")
     assert (target / "manifest.json").read_text() == "new"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
@@ -179,6 +183,7 @@ def test_atomic_directory_falls_back_to_two_renames(tmp_path, monkeypatch):
     for text in ("old", "new"):
         with atomic_directory(target) as d:
             (d / "manifest.json").write_text(text)
+            (d / "metrics.csv").write_text("")
     assert (target / "manifest.json").read_text() == "new"
     assert [p.name for p in tmp_path.iterdir()] == ["exp"]
 
@@ -201,6 +206,7 @@ def test_a_killed_writers_temporary_folders_are_removed_by_the_next_write(tmp_pa
     with atomic_directory(tmp_path / "exp") as d:
         assert d.name.startswith(f".exp.tmp-{owner}-")
         (d / "manifest.json").write_text("new")
+        (d / "metrics.csv").write_text("")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["exp", *kept])
 
 
@@ -355,9 +361,10 @@ def test_someone_elses_file_or_folder_where_results_go_is_not_replaced(tmp_path,
     target = tmp_path / "asv_observers"
     if what == "file":
         target.write_text("precious")
-    elif what == "folder":
+    elif what == "folder":  # a web app's folder: its own manifest.json, no metrics.csv
         target.mkdir()
         (target / "important.py").write_text("code")
+        (target / "manifest.json").write_text('{"name": "app"}')
     else:
         (tmp_path / "elsewhere").mkdir()
         target.symlink_to(tmp_path / "elsewhere")
@@ -365,7 +372,7 @@ def test_someone_elses_file_or_folder_where_results_go_is_not_replaced(tmp_path,
     config = ROOT / "examples" / "first_experiment" / "asv_observers.yaml"
     res = CliRunner().invoke(app, ["run", str(config), "--set", "scenario.horizon=6", "--seeds", "1", "--out",
                                    str(tmp_path), "--quiet"])
-    said = {"file": "a file, not a results folder", "folder": "a folder of other files (no manifest.json)",
+    said = {"file": "a file, not a results folder", "folder": "a folder of other files (no manifest.json and metrics.csv)",
             "link": "a symbolic link, not a results folder"}[what]
     assert res.exit_code == 2 and res.output.startswith(f"error: {target}: {said}"), res.output
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
@@ -375,4 +382,7 @@ def test_someone_elses_file_or_folder_where_results_go_is_not_replaced(tmp_path,
     empty.mkdir()
     with atomic_directory(empty) as d:  # an empty folder holds nothing to lose
         (d / "manifest.json").write_text("{}")
-    assert (empty / "manifest.json").exists()
+        (d / "metrics.csv").write_text("")
+    with atomic_directory(empty) as d:  # and a result is replaced by the next
+        (d / "manifest.json").write_text("{}")
+    assert sorted(p.name for p in empty.iterdir()) == ["manifest.json"]

@@ -70,9 +70,9 @@ def output_folder(folder: Path, option: str = "--out") -> Iterator[None]:
 def replaceable(target: Path) -> None:
     """Refuse (a :class:`~marinebench.errors.ConfigError` naming ``target``) to replace what is not marinebench's: a
     results folder is written whole in place of the previous one, so ``target`` must be absent, an empty folder, or
-    a folder with a ``manifest.json`` (results of ``run`` or ``sweep``). A file, a symbolic link or a folder of other
-    things at that path (a config named after a source folder, ``--out .``) is someone's work; before, it was replaced
-    and lost."""
+    a folder with the ``manifest.json`` and ``metrics.csv`` of a ``run`` or ``sweep`` (a web app's folder has a
+    manifest.json too). A file, a symbolic link or a folder of other things at that path (a config named after a
+    source folder, ``--out .``) is someone's work; before, it was replaced and lost."""
     from marinebench.errors import ConfigError
 
     target = Path(target)
@@ -83,9 +83,10 @@ def replaceable(target: Path) -> None:
         return
     if not target.is_dir():
         raise ConfigError(str(target), "", "a file, not a results folder: not replaced (move it, or choose another --out)")
-    if not (target / "manifest.json").is_file() and any(target.iterdir()):
-        raise ConfigError(str(target), "", "a folder of other files (no manifest.json), not marinebench's results: not "
-                          "replaced (move it, or choose another --out)")
+    ours = (target / "manifest.json").is_file() and (target / "metrics.csv").is_file()
+    if not ours and any(target.iterdir()):
+        raise ConfigError(str(target), "", "a folder of other files (no manifest.json and metrics.csv), not marinebench's "
+                          "results: not replaced (move it, or choose another --out)")
 
 
 @contextmanager
