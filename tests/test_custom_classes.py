@@ -235,8 +235,9 @@ LATE_ANSWERS = {  # what earth_eso.py's outputs/derivative return after 400 call
 
 @pytest.mark.parametrize("case", sorted(LATE_ANSWERS))
 def test_a_custom_observer_answering_wrong_while_running_is_one_line(example, tmp_path, case):
-    """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py ``CheckedObserver``),
-    not only at validation: a class that later drops a signal or changes a shape is one line, and nothing is written."""
+    """Every answer of a custom observer is checked while the runs are simulated too (observers/custom.py
+    ``CheckedObserver``), not only at validation: a class that later drops a signal or changes a shape is one line,
+    and nothing is written."""
     member, edit, message = LATE_ANSWERS[case]
     _answer_late(example.parent / "earth_eso.py", member, edit)
     res = runner.invoke(app, ["run", str(example), "--seeds", "1", "--set", "scenario.horizon=8", "--out",

@@ -468,7 +468,8 @@ def _row(r, paired: bool) -> str:
         held = {1.0: "holds", 0.0: "fails"}
         base, cand = (held.get(v, "–") + (" (narrowly)" if r.narrow in (side, "both") else "")
                       for v, side in ((r.baseline, "baseline"), (r.candidate, "candidate")))
-        return md_row([ICONS[r.verdict], r.experiment, "–", "–", r.signal, "claim", base, cand, "–", "–", "–"])  # signal: its text
+        # a claim's row holds its text in the signal column
+        return md_row([ICONS[r.verdict], r.experiment, "–", "–", r.signal, "claim", base, cand, "–", "–", "–"])
     rel = "–" if np.isnan(r.rel_change) else f"{r.rel_change:+.1%}"
     if np.isnan(r.ci_low):
         ci = "–"
