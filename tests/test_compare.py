@@ -212,10 +212,28 @@ def test_a_claims_narrow_verdict_is_marked_on_its_side(tmp_path, base_values):
 
 
 def test_newly_diverged_run_is_worse(tmp_path, base_values):
+    """The cell is worse though its means (over the seeds both finished) are equal, and the row says why."""
     write_result(tmp_path / "base", "exp", base_values)
     write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})
     res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
     assert res.exit_code == 1 and "1 worse" in res.output
+    assert "| a | u | std |" in res.output.splitlines()[4] and res.output.splitlines()[4].endswith("| 7, 1 diverged |")
+    doc = json.loads(runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand"),
+                                         "--format", "json"]).output)
+    assert {(c["signal"], c["variant"]): c["diverged"] for c in doc["cells"] if c["metric"] == "std"} == \
+        {("u", "a"): 1, ("u", "b"): 0, ("v", "a"): 0, ("v", "b"): 0}
+
+
+def test_a_file_without_status_takes_it_from_its_values(tmp_path, base_values):
+    """Older files have no ``status``: a blank (NaN) value there is a diverged run, not a NaN averaged in."""
+    write_result(tmp_path / "base", "exp", base_values)
+    cand = write_result(tmp_path / "cand", "exp", base_values, status={("a", "u", 3): "diverged"})
+    df = pd.read_csv(cand / "metrics.csv").drop(columns="status")
+    df.to_csv(cand / "metrics.csv", index=False)
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(cand), "--format", "json"])
+    worse = [c for c in json.loads(res.output)["cells"] if c["verdict"] == "worse"]
+    assert res.exit_code == 1 and [(c["variant"], c["signal"], c["n"], c["diverged"]) for c in worse] == \
+        [("a", "u", 7, 1)]
 
 
 def test_unusable_inputs_exit_2(tmp_path, base_values):
@@ -475,6 +493,12 @@ DAMAGED = {
                                            b"exp,s,a,0,u,std,0.1\nexp,s,a,0,u,std,0.2\n"),
                            ("metrics.csv: 2 rows share their experiment, scenario, variant, seed, signal and metric "
                             "(first: experiment=exp, scenario=s, variant=a, seed=0, signal=u, metric=std)")),
+    # averaged in, a NaN made the cell's means NaN and the cell `same` (rc 0); an infinity made a warning
+    "metrics_nan_ok": ("metrics.csv", (b"experiment,scenario,variant,seed,signal,metric,value,status\n"
+                                       b"exp,s,a,0,u,std,0.1,ok\nexp,s,a,1,u,std,nan,ok\n"),
+                       "metrics.csv: line 3: value nan with status ok (a finished run's value is a finite number"),
+    "metrics_inf_ok": ("metrics.csv", (b"experiment,scenario,variant,seed,signal,metric,value,status\n"
+                                       b"exp,s,a,0,u,std,-inf,ok\n"), "metrics.csv: line 2: value -inf with status ok"),
 }
 
 

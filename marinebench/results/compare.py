@@ -87,10 +87,7 @@ def _metrics_files(root: Path) -> list[Path]:
 
 def load_metrics(dirs: dict[str, Path]) -> pd.DataFrame:
     frames = [read_metrics(d / "metrics.csv") for d in dirs.values()]
-    df = pd.concat(frames, ignore_index=True)
-    if "status" not in df:
-        df["status"] = "ok"
-    return df
+    return pd.concat(frames, ignore_index=True)
 
 
 def select_metrics(frames: list[pd.DataFrame], metrics: list[str] | None) -> list[pd.DataFrame]:
@@ -224,10 +221,11 @@ def relative_change_ci(base: np.ndarray, cand: np.ndarray, level: float = 0.95, 
 
 
 COLUMNS = ["baseline", "candidate", "change", "rel_change", "ci_low", "ci_high", "rel_ci_low", "rel_ci_high", "n",
-           "n_candidate", "unpaired", "verdict", "narrow"]
+           "n_candidate", "unpaired", "diverged", "verdict", "narrow"]
 """After the cell's keys: the means over the compared runs, change, its CI, the relative change and its CI, ``n``
 baseline runs compared (the pairs, when paired) and ``n_candidate`` candidate runs (= ``n`` when paired),
-``unpaired`` seeds that only one side ran (left out of the pairing), verdict; for a claim, ``narrow``: the side(s)
+``unpaired`` seeds that only one side ran (left out of the pairing), ``diverged`` candidate runs that diverged
+(paired: of the seeds that finished in the baseline), verdict; for a claim, ``narrow``: the side(s)
 whose verdict was narrow (``baseline``, ``candidate`` or ``both``; its 95 % interval across the bound), else ''."""
 
 
@@ -236,25 +234,28 @@ def _one_sided_row(row: dict, b: pd.DataFrame | None, c: pd.DataFrame | None) ->
     def mean(g):
         return np.nan if g is None else g[g["status"] == "ok"]["value"].mean()
     row.update(baseline=mean(b), candidate=mean(c), change=np.nan, rel_change=np.nan, ci_low=np.nan, ci_high=np.nan,
-               rel_ci_low=np.nan, rel_ci_high=np.nan, n=0, n_candidate=0, unpaired=0,
+               rel_ci_low=np.nan, rel_ci_high=np.nan, n=0, n_candidate=0, unpaired=0, diverged=0,
                verdict="missing" if c is None else "new", narrow="")
     return row
 
 
-def _samples(b: pd.DataFrame, c: pd.DataFrame, paired: bool) -> tuple[np.ndarray, np.ndarray, bool, int]:
-    """The values compared, ``(base, cand, newly_diverged, unpaired)``. Paired: the seeds both sides ran and
-    finished (a seed that diverged only in the candidate makes it worse). Unpaired: every finished run of each
-    side (a larger share of diverged runs in the candidate makes it worse)."""
+def _samples(b: pd.DataFrame, c: pd.DataFrame, paired: bool) -> tuple[np.ndarray, np.ndarray, bool, int, int]:
+    """The values compared, ``(base, cand, newly_diverged, unpaired, diverged)``. Paired: the seeds both sides ran
+    and finished (a seed that diverged only in the candidate makes it worse). Unpaired: every finished run of each
+    side (a larger share of diverged runs in the candidate makes it worse). ``diverged``: the candidate's diverged
+    runs (paired: of the seeds that finished in the baseline)."""
     if not paired:
         b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
-        return b["value"][b_ok].to_numpy(), c["value"][c_ok].to_numpy(), bool((~c_ok).mean() > (~b_ok).mean()), 0
+        return (b["value"][b_ok].to_numpy(), c["value"][c_ok].to_numpy(), bool((~c_ok).mean() > (~b_ok).mean()), 0,
+                int((~c_ok).sum()))
     b, c = b.set_index("seed"), c.set_index("seed")
     seeds = b.index.intersection(c.index)
     unpaired = len(b.index.union(c.index)) - len(seeds)
     b, c = b.loc[seeds], c.loc[seeds]
     b_ok, c_ok = b["status"] == "ok", c["status"] == "ok"
     both = b_ok & c_ok
-    return b["value"][both].to_numpy(), c["value"][both].to_numpy(), bool((b_ok & ~c_ok).any()), unpaired
+    newly = int((b_ok & ~c_ok).sum())
+    return b["value"][both].to_numpy(), c["value"][both].to_numpy(), newly > 0, unpaired, newly
 
 
 def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tolerance(), keys: list[str] = KEYS,
@@ -270,7 +271,7 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         if cell not in cg or cell not in bg:
             rows.append(_one_sided_row(row, bg.get(cell), cg.get(cell)))
             continue
-        bv, cv, newly_diverged, unpaired = _samples(bg[cell], cg[cell], paired)
+        bv, cv, newly_diverged, unpaired, diverged = _samples(bg[cell], cg[cell], paired)
         bm, cm = float(bv.mean()) if bv.size else np.nan, float(cv.mean()) if cv.size else np.nan
         change = cm - bm
         if paired and interval == "bootstrap":
@@ -293,7 +294,7 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
             verdict = "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
                    ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=bv.size, n_candidate=cv.size,
-                   unpaired=unpaired, verdict=verdict, narrow="")
+                   unpaired=unpaired, diverged=diverged, verdict=verdict, narrow="")
         rows.append(row)
     out = pd.DataFrame(rows, columns=keys + COLUMNS)
     out["_sev"] = out["verdict"].map(SEVERITY)
@@ -351,7 +352,7 @@ def compare_claims(base: dict[tuple[str, str], tuple[bool, bool]],
         rows.append({"experiment": key[0], "scenario": "–", "variant": "–", "signal": key[1], "metric": "claim",
                      "baseline": np.nan if b is None else float(b), "candidate": np.nan if c is None else float(c),
                      "change": np.nan, "rel_change": np.nan, "ci_low": np.nan, "ci_high": np.nan, "n": 0,
-                     "n_candidate": 0, "unpaired": 0, "verdict": verdict, "narrow": narrow})
+                     "n_candidate": 0, "unpaired": 0, "diverged": 0, "verdict": verdict, "narrow": narrow})
     return pd.DataFrame(rows, columns=KEYS + COLUMNS)
 
 
@@ -478,6 +479,7 @@ def _row(r, paired: bool) -> str:
     else:
         ci = f"[{_fmt(r.ci_low)}, {_fmt(r.ci_high)}]"
     seeds = r.n if paired else f"{r.n}/{r.n_candidate}"
+    seeds = f"{seeds}, {r.diverged} diverged" if r.diverged else seeds  # the candidate's, left out of the means
     return (f"| {ICONS[r.verdict]} | {r.experiment} | {r.scenario} | {r.variant} | {r.signal} | {r.metric} | "
             f"{_fmt(r.baseline)} | {_fmt(r.candidate)} | {rel} | {ci} | {seeds} |")
 

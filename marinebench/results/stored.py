@@ -7,11 +7,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from marinebench.errors import ConfigError, MarinebenchError
 
-#: Columns every ``metrics.csv`` written by ``run`` or ``sweep`` has (``status`` is optional: older files).
+#: Columns every ``metrics.csv`` written by ``run`` or ``sweep`` has (``status`` is optional: older files; see
+#: :func:`_check_status`).
 METRICS_COLUMNS = ["experiment", "scenario", "variant", "seed", "signal", "metric", "value"]
 #: The columns of names, read as text: a config, scenario or variant may be named "1", "1e3" or "NA" (config.NAME),
 #: and must keep that name rather than become a number or a blank.
@@ -79,7 +81,22 @@ def read_metrics(path: Path, usecols: list[str] | None = None, nrows: int | None
             first = ", ".join(f"{k}={twice.iloc[0][k]}" for k in METRICS_COLUMNS[:-1])
             raise StoredResultError(f"{path}: {len(twice)} rows share their experiment, scenario, variant, seed, "
                                     f"signal and metric (first: {first})")
+        _check_status(df, path)
     return df[usecols] if usecols else df
+
+
+def _check_status(df: pd.DataFrame, path: Path) -> None:
+    """``run`` and ``sweep`` write a finished run's value as a finite number with status ``ok``, and a diverged
+    run's as NaN with status ``diverged``. A file without ``status`` (older files) gets it from its values; in one
+    with it, an ``ok`` row whose value is NaN or infinite is refused: a comparison would average it into a NaN
+    (and call the cell the same) or an infinity."""
+    finite = np.isfinite(df["value"].to_numpy(dtype=float))
+    if "status" not in df:
+        df["status"] = np.where(finite, "ok", "diverged")
+    elif (bad := (df["status"] == "ok").to_numpy() & ~finite).any():
+        line = int(bad.argmax())
+        raise StoredResultError(f"{path}: line {line + 2}: value {df['value'].iloc[line]} with status ok (a finished "
+                                f"run's value is a finite number; a diverged run's has status diverged)")
 
 
 def read_manifest(d: Path) -> dict:
