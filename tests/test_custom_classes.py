@@ -258,6 +258,21 @@ def test_a_custom_observer_answering_wrong_in_a_sweep_is_one_line_naming_the_con
         f"error: {example}: {message} (a class of your own, while the runs were simulated)"), res.output
 
 
+def test_a_custom_observer_failing_on_a_local_dask_worker_is_one_line_and_the_worker_stays_quiet(example, tmp_path,
+                                                                                                   capfd):
+    """On ``--dask local`` the failing chunk is reported once, by this process; before, its worker logged it too
+    (an ERROR with the traceback), and the chunks cancelled after it as warnings, on the terminal's stderr."""
+    member, edit, message = LATE_ANSWERS["dropped"]
+    _answer_late(example.parent / "earth_eso.py", member, edit)
+    res = runner.invoke(app, ["sweep", "--config", str(example), "omega", "--n", "2", "--seeds", "1", "--horizon", "8",
+                              "--chunk-size", "1", "--dask", "local", "--workers", "1", "--out", str(tmp_path / "out"),
+                              "--quiet"])
+    assert res.exit_code == 2 and res.output.startswith("error: --dask: chunk 0 failed on a worker (UserCodeError: "
+                                                        f"{message}"), res.output
+    assert len(res.output.strip().splitlines()) == 1
+    assert capfd.readouterr().err == ""
+
+
 def _answer_late(source, member: str, edit: str) -> None:
     """Edit the example's class so that its ``member`` answers through ``edit`` (on ``out``) after 400 calls."""
     text = source.read_text()
