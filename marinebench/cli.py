@@ -533,13 +533,18 @@ def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | 
         fail("--chunk-size: must be at least 1")
     if jobs and dask:
         fail("--jobs: runs the batches in local processes; with --dask, --workers sets a local cluster's size")
+    _check_points(n, horizon)
+    if grid and require_claims:
+        fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
+             "use it on a one-at-a-time sweep")
+
+
+def _check_points(n: int | None, horizon: float | None) -> None:
+    """sweep, bench: ``--n`` points per parameter and ``--horizon`` seconds per run in range."""
     if n is not None and not 2 <= n <= MAX_SWEEP_N:
         fail(f"--n: from 2 to {MAX_SWEEP_N} points per parameter")
     if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both
         fail("--horizon: must be a positive, finite number of seconds")
-    if grid and require_claims:
-        fail("--require-claims: a grid sweep maps where each claim holds (claims.md) and gives no verdict; "
-             "use it on a one-at-a-time sweep")
 
 
 @app.command()
@@ -558,6 +563,7 @@ def bench(
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.experiments.sweep import sweep_experiment
 
+    _check_points(n, horizon)
     _sweep_config(config)
     with one_line_errors():
         base, _ = _load(config, [], None, None, sweep_params=False)
@@ -567,6 +573,8 @@ def bench(
         if unknown := [p for p in names if p not in have]:
             raise ConfigError("--params", "", f"{params}: {config} has no sweep parameter {unknown[0]!r} (its "
                               f"sweep.params: {', '.join(have) or 'none: the config has no sweep section'})")
+        if len(set(names)) < len(names):
+            raise ConfigError("--params", "", f"{params}: a parameter given more than once")
         exp = sweep_experiment(base, names, None, n, horizon, config)
     full_horizon = base.scenario.horizon
     B = len(exp.variants)

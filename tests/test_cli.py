@@ -765,6 +765,17 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
         assert bench.exit_code == 2 and bench.output.startswith(expected) and len(bench.output.splitlines()) == 1, bench.output
 
 
+@pytest.mark.parametrize("args, expected", [
+    (["--n", "-3"], "error: --n: from 2 to 1000 points per parameter"),  # before: numpy's traceback
+    (["--n", "0"], "error: --n: from 2 to 1000 points per parameter"),  # before: the config's n, silently
+    (["--horizon", "inf"], "error: --horizon: must be a positive, finite number of seconds"),
+    (["--params", "k,k", "--n", "2"], "error: --params: k,k: a parameter given more than once"),  # before: "PARAM:"
+])
+def test_bench_options_out_of_range_are_one_line_as_in_sweep(args, expected):
+    res = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), *args])
+    assert res.exit_code == 2 and res.output.strip() == expected, res.output
+
+
 def test_bench_times_both_engines_on_the_same_runs_and_they_agree(tmp_path, monkeypatch):
     """bench: 12 runs of 2 s of the Torben sweep, batched and by the per-run reference; the ratio, the
     extrapolation and their agreement are printed, and nothing is written."""
