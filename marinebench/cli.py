@@ -639,7 +639,8 @@ def compare(
     """Compare results cell by cell over seeds (paired on seed, bootstrap CIs; or --unpaired); exit 1 if worse.
 
     Exit 0: nothing worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
-    from marinebench.results.compare import Tolerance, compare_dirs, compare_variants, headline, to_markdown
+    from marinebench.results.compare import OUTPUT_HEADS, Tolerance, compare_dirs, compare_variants, headline
+    from marinebench.results.writer import replaceable_file
 
     if not (rtol >= 0 and atol >= 0):  # nan fails too
         fail("--rtol/--atol: tolerances must be non-negative numbers")
@@ -649,6 +650,8 @@ def compare(
         fail("--interval: chooses the CI of a paired comparison; --unpaired always uses Welch's t interval")
     tol = Tolerance(rtol=rtol, atol=atol)
     with one_line_errors():
+        if output is not None:  # before reading anything: a file there that compare did not write stays
+            replaceable_file(output, OUTPUT_HEADS, "--output")
         if variants is not None:
             if candidate is not None:
                 fail("give either CANDIDATE or --variants A B, not both")
@@ -658,14 +661,7 @@ def compare(
             if candidate is None:
                 fail("missing CANDIDATE (or use --variants A B)")
             table = compare_dirs(baseline, candidate, metric, tol, paired=not unpaired, interval=interval or "bootstrap")
-    if fmt is Format.md:
-        text = to_markdown(table, all_cells=all_cells, paired=not unpaired)
-    elif fmt is Format.json:
-        text = json.dumps({"summary": headline(table), "paired": not unpaired,
-                           "machines": table.attrs.get("machine_note", ""), "renamed": table.attrs.get("renamed", ""),
-                           "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
-    else:
-        text = table.to_csv(index=False)
+    text = _comparison_text(table, fmt, all_cells, paired=not unpaired)
     if output is not None:
         _write_text(output, text, "--output")
         err.print(headline(table), markup=False)
@@ -673,6 +669,20 @@ def compare(
         sys.stdout.write(text)
     failing = {"worse", "missing"} if strict else {"worse"}
     raise typer.Exit(1 if table["verdict"].isin(failing).any() else 0)
+
+
+def _comparison_text(table, fmt: Format, all_cells: bool, paired: bool) -> str:
+    """compare's output in ``fmt``: markdown (the worse, missing and better cells; ``all_cells``: every one), json
+    (headline, notes and every cell) or csv (every cell)."""
+    from marinebench.results.compare import headline, to_markdown
+
+    if fmt is Format.md:
+        return to_markdown(table, all_cells=all_cells, paired=paired)
+    if fmt is Format.json:
+        return json.dumps({"summary": headline(table), "paired": paired,
+                           "machines": table.attrs.get("machine_note", ""), "renamed": table.attrs.get("renamed", ""),
+                           "cells": json.loads(table.to_json(orient="records"))}, indent=2) + "\n"
+    return table.to_csv(index=False)
 
 
 @app.command()
@@ -683,11 +693,13 @@ def report(
     unpaired: Unpaired = False,
 ) -> None:
     """Write one self-contained static HTML report (figures embedded, no JavaScript)."""
-    from marinebench.results.report import render_report
+    from marinebench.results.report import HEAD, render_report
+    from marinebench.results.writer import replaceable_file
 
     if unpaired and compare_with is None:
         fail("--unpaired: compares the results with a baseline, so it needs --compare BASELINE")
     with one_line_errors():
+        replaceable_file(out_file, (HEAD,), "--out")  # before reading anything: a file there it did not write stays
         html = render_report(results, compare_with, paired=not unpaired)
     _write_text(out_file, html, "--out")
     out.print(f"report -> {out_file}", markup=False)

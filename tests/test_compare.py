@@ -747,3 +747,36 @@ def test_the_tree_is_read_past_temporary_and_vanishing_folders(tmp_path, base_va
 
     monkeypatch.setattr(os, "scandir", vanishing)
     assert compare.find_results(tmp_path / "tree") == {"exp": tmp_path / "tree" / "exp"}
+
+
+@pytest.mark.parametrize("command, option", [("compare", "--output"), ("report", "--out")])
+def test_an_output_file_replaces_only_one_its_command_wrote(tmp_path, base_values, command, option):
+    """``report --out`` and ``compare --output`` write a file whole in place of what is there: only an earlier output
+    of the same command (recognised by how it starts), an empty file, or nothing is replaced. Before, ``report
+    --out base/exp/metrics.csv`` replaced the result's metrics with HTML, rc 0."""
+    base = write_result(tmp_path / "base", "exp", base_values)
+    write_result(tmp_path / "cand", "exp", base_values)
+    args = ["compare", str(tmp_path / "base"), str(tmp_path / "cand")] if command == "compare" else \
+        ["report", str(tmp_path / "cand"), "--compare", str(tmp_path / "base")]
+    metrics = (base / "metrics.csv").read_bytes()
+    (tmp_path / "notes.md").write_text("my notes\n")
+    (tmp_path / "link").symlink_to(tmp_path / "notes.md")
+    for target, why in [(base / "metrics.csv", "a file this command did not write"),
+                        (tmp_path / "notes.md", "a file this command did not write"),
+                        (tmp_path / "link", "a symbolic link"), (base, "not a file")]:
+        res = runner.invoke(app, [*args, option, str(target)])
+        assert res.exit_code == 2 and res.output.strip() == (
+            f"error: {option}: {target}: {why}: not replaced" + (" (move it, or choose another " if "did not" in why
+                                                                  else " (choose another ") + f"{option})"), res.output
+    assert (base / "metrics.csv").read_bytes() == metrics and (tmp_path / "notes.md").read_text() == "my notes\n"
+    (tmp_path / "empty").touch()  # e.g. made by mktemp
+    formats = [["--format", f] for f in ("md", "json", "csv")] if command == "compare" else [[]]
+    for fmt in formats:
+        for target in (tmp_path / f"out{''.join(fmt)}", tmp_path / f"out{''.join(fmt)}", tmp_path / "empty"):
+            res = runner.invoke(app, [*args, *fmt, option, str(target)])  # the second time replaces the first
+            assert res.exit_code == 0 and target.stat().st_size > 0, res.output
+    if command == "compare":  # two variants' csv has other key columns
+        for _ in range(2):
+            res = runner.invoke(app, ["compare", str(base), "--variants", "a", "b", "--format", "csv", "--output",
+                                      str(tmp_path / "variants.csv")])
+            assert res.exit_code in (0, 1), res.output

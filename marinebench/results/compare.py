@@ -443,6 +443,9 @@ def _fmt(x) -> str:
     return "–" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{x:.4g}"
 
 
+#: How compare's md, json and csv outputs start: ``--output`` replaces a file only when it starts so (a comparison
+#: written before).
+OUTPUT_HEADS = ("### marinebench compare:", '{\n  "summary":', ",".join(KEYS) + ",")
 QUIET = ("same", "new")  # verdicts the markdown summary counts but does not list unless asked
 ONLY_IN = {"missing": "baseline", "new": "candidate"}  # the side a one-sided cell or experiment is on
 UNPAIRED_NOTE = ("Unpaired: each side's runs are an independent sample (its own seeds and noise); the CI is Welch's t "

@@ -89,6 +89,26 @@ def replaceable(target: Path) -> None:
                           "results: not replaced (move it, or choose another --out)")
 
 
+def replaceable_file(path: Path, heads: tuple[str, ...], option: str) -> None:
+    """Refuse (a :class:`~marinebench.errors.ConfigError` naming ``option`` and ``path``) to replace a file this
+    command did not write: ``path`` must be absent, empty, or a file whose text starts with one of ``heads`` (how
+    the command's outputs start). Before, ``report --out results/x/metrics.csv`` replaced the result's metrics with
+    HTML (rc 0), and ``compare --output`` any file with the comparison."""
+    from marinebench.errors import ConfigError
+
+    path = Path(path)
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        what = "a symbolic link" if path.is_symlink() else "not a file"
+        raise ConfigError(option, "", f"{path}: {what}: not replaced (choose another {option})")
+    if not path.exists() or path.stat().st_size == 0:
+        return
+    with open(path, "rb") as fh:
+        start = fh.read(max(len(h.encode()) for h in heads))
+    if not any(start.startswith(h.encode()) for h in heads):
+        raise ConfigError(option, "", f"{path}: a file this command did not write: not replaced (move it, or choose "
+                          f"another {option})")
+
+
 @contextmanager
 def atomic_directory(target: Path, results: bool = True) -> Iterator[Path]:
     """Yield a temporary directory that replaces ``target`` only if the block succeeds (``results``: ``target`` is
