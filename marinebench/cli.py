@@ -391,7 +391,7 @@ def sweep(
     instead. Where a run is simulated does not change its numbers."""
     import time as _time
 
-    from marinebench.experiments.sweep import GRID_N, discard_partial, inline_params, sweep_suffix
+    from marinebench.experiments.sweep import GRID_N, check_partial, discard_partial, inline_params, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
     from marinebench.results.writer import replaceable
@@ -412,6 +412,7 @@ def sweep(
         output_stem(config) + sweep_suffix(base, params, groups, n, horizon, overrides, grid))
     with one_line_errors():
         replaceable(target)
+        check_partial(target)
     known = _up_to_date(exp, target, quiet) if resume else None
     if known is not None:
         _claims_verdict(require_claims, known)

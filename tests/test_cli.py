@@ -417,6 +417,36 @@ def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp
     assert (tmp_path / "a" / name / "metrics.csv").read_text() == (tmp_path / "b" / name / "metrics.csv").read_text()
 
 
+@pytest.mark.parametrize("thing", ["file", "link", "folder"])
+def test_a_sweep_leaves_what_is_not_its_kept_batches_where_it_keeps_them(tmp_path, thing):
+    """``.<folder>.partial`` is where a sweep keeps its finished batches, and removes them when they are another
+    sweep's: a file there was a traceback; a folder of other files would have been removed. Both are refused before
+    anything runs, and left as they were; the sweep's own kept batches (``key``, ``chunk-*.csv``) are resumed."""
+    partial = tmp_path / "o" / ".torben_fig3_sweep_k_dgnss_n2_2s.partial"
+    partial.parent.mkdir()
+    if thing == "file":
+        partial.write_text("mine")
+    elif thing == "link":
+        partial.symlink_to(tmp_path)
+    else:
+        partial.mkdir()
+        (partial / "notes.txt").write_text("mine")
+        (partial / "chunk-0000.csv").write_text("a batch of another sweep")
+    args = ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "2", "--horizon", "2",
+            "--gnss", "dgnss", "--jobs", "1", "--quiet", "--out", str(tmp_path / "o")]
+    res = runner.invoke(app, args)
+    what = "a folder of other files (notes.txt)" if thing == "folder" else "a file or symbolic link"
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {partial}: {what} where a sweep keeps its finished batches: not replaced (move it, or choose another "
+        "--out)"), res.output
+    assert (partial / "notes.txt").read_text() == "mine" if thing == "folder" else \
+        partial.is_symlink() if thing == "link" else partial.read_text() == "mine"
+    assert not (tmp_path / "o" / "torben_fig3_sweep_k_dgnss_n2_2s").exists()
+    if thing == "folder":  # without the other file: another sweep's batches, removed, and the sweep runs
+        (partial / "notes.txt").unlink()
+        assert runner.invoke(app, args).exit_code == 0 and not partial.exists()
+
+
 @pytest.mark.parametrize("stop, code", [(KeyboardInterrupt, 130), ("terminated", 143)])
 def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch, stop, code):
     """Ctrl-C, or SIGTERM, which the console entry point turns into cli.Terminated: one line, 130 or 143."""

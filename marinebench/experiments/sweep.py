@@ -638,6 +638,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
 
     key = inputs_key(exp)
     partial = partial_dir(target)
+    check_partial(target)
     if partial.exists() and _kept_key(partial) != key:
         shutil.rmtree(partial)  # a different sweep, or other code, was interrupted here: start afresh
     partial.mkdir(parents=True, exist_ok=True)
@@ -700,6 +701,21 @@ def _kept_chunk(path: Path, variants: list[Variant]) -> pd.DataFrame | None:
 def partial_dir(target: Path) -> Path:
     """Where :func:`run_chunked` keeps the finished chunks of the sweep that writes ``target``."""
     return target.parent / f".{target.name}.partial"
+
+
+def check_partial(target: Path) -> None:
+    """Refuse (a :class:`ConfigError` naming it) a :func:`partial_dir` that is not the kept chunks of a sweep, which
+    :func:`run_chunked` would remove or write into: a file or symbolic link there, or a folder with other files
+    than ``key``, ``chunk-*.csv`` and their temporary files. Before, a file there was a traceback."""
+    partial = partial_dir(target)
+    if partial.is_symlink() or (partial.exists() and not partial.is_dir()):
+        raise ConfigError(str(partial), "", "a file or symbolic link where a sweep keeps its finished batches: not "
+                          "replaced (move it, or choose another --out)")
+    ours = re.compile(r"\.?(key|chunk-\d{4}\.csv)(\..+)?")  # atomic_write_text's temporary: .<name>.<random>
+    if partial.is_dir() and (other := sorted(p.name for p in partial.iterdir() if not ours.fullmatch(p.name))):
+        named = ", ".join(other[:3]) + (", ..." if len(other) > 3 else "")
+        raise ConfigError(str(partial), "", f"a folder of other files ({named}) where a sweep keeps its finished "
+                          "batches: not replaced (move it, or choose another --out)")
 
 
 def finished_chunks(target: Path) -> int:
