@@ -780,3 +780,20 @@ def test_an_output_file_replaces_only_one_its_command_wrote(tmp_path, base_value
             res = runner.invoke(app, ["compare", str(base), "--variants", "a", "b", "--format", "csv", "--output",
                                       str(tmp_path / "variants.csv")])
             assert res.exit_code in (0, 1), res.output
+
+
+def test_an_output_file_that_cannot_be_read_is_not_replaced(tmp_path, monkeypatch):
+    """Whether a file there was written by the command is read from its start; one that cannot be read is refused
+    (as root, a mode of 000 does not stop a read, so the failure is made here)."""
+    from marinebench.errors import ConfigError
+    from marinebench.results import writer
+
+    (tmp_path / "out.md").write_text("### marinebench compare: 0 worse\n")
+
+    def unreadable(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(writer, "open", unreadable, raising=False)
+    with pytest.raises(ConfigError, match=r"^--output: .*out\.md: cannot read what is there \(Permission denied\): "
+                                          r"not replaced$"):
+        writer.replaceable_file(tmp_path / "out.md", ("### marinebench compare:",), "--output")

@@ -27,6 +27,7 @@ code { background: #f0f0f0; padding: 0 3px; }
 #: How a report starts: ``report --out`` replaces a file only when it starts so (a report written before).
 HEAD = "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>marinebench report</title>"
 
+
 def _inline(text: str) -> str:
     out = html.escape(text)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
@@ -123,4 +124,4 @@ def render_report(results: Path, compare_with: Path | None = None, paired: bool 
             parts.append(f'<figure><img alt="{html.escape(png.name)}" src="data:image/png;base64,{data}">'
                          f"<figcaption>{html.escape(png.name)}</figcaption></figure>")
         parts.append(_manifest_html(d))
-    return (HEAD + f"<style>{CSS}</style></head><body>" + "\n".join(parts) + "</body></html>\n")
+    return HEAD + f"<style>{CSS}</style></head><body>" + "\n".join(parts) + "</body></html>\n"

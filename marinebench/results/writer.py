@@ -102,8 +102,11 @@ def replaceable_file(path: Path, heads: tuple[str, ...], option: str) -> None:
         raise ConfigError(option, "", f"{path}: {what}: not replaced (choose another {option})")
     if not path.exists() or path.stat().st_size == 0:
         return
-    with open(path, "rb") as fh:
-        start = fh.read(max(len(h.encode()) for h in heads))
+    try:
+        with open(path, "rb") as fh:
+            start = fh.read(max(len(h.encode()) for h in heads))
+    except OSError as exc:
+        raise ConfigError(option, "", f"{path}: cannot read what is there ({exc.strerror}): not replaced") from None
     if not any(start.startswith(h.encode()) for h in heads):
         raise ConfigError(option, "", f"{path}: a file this command did not write: not replaced (move it, or choose "
                           f"another {option})")
