@@ -386,3 +386,35 @@ def test_someone_elses_file_or_folder_where_results_go_is_not_replaced(tmp_path,
     with atomic_directory(empty) as d:  # and a result is replaced by the next
         (d / "manifest.json").write_text("{}")
     assert sorted(p.name for p in empty.iterdir()) == ["manifest.json"]
+
+
+def test_results_are_not_written_inside_a_results_folder(tmp_path):
+    """``--out results/torben_fig1`` would put a result inside another, lost when that one is next replaced: refused
+    before anything runs, by ``run``, ``sweep`` and the Python API's write, and nothing is created."""
+    from typer.testing import CliRunner
+
+    from marinebench.cli import app
+
+    from .conftest import ROOT
+
+    outer = tmp_path / "results" / "torben_fig1"
+    outer.mkdir(parents=True)
+    (outer / "manifest.json").write_text("{}")
+    (outer / "metrics.csv").write_text("")
+    before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    config = ROOT / "examples" / "first_experiment" / "asv_observers.yaml"
+    cases = [(["run", str(config), "--set", "scenario.horizon=6", "--seeds", "1", "--out", str(outer / "more")],
+              outer / "more" / "asv_observers"),
+             (["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "2", "--horizon", "2",
+               "--gnss", "dgnss", "--out", str(outer)], outer / "torben_fig3_sweep_k_dgnss_n2_2s")]
+    for args, target in cases:
+        res = CliRunner().invoke(app, [*args, "--quiet"])
+        assert res.exit_code == 2 and res.output.strip() == (
+            f"error: {target}: inside the results folder {outer}, which is replaced whole when it is written again: "
+            "not written there (choose another --out)"), res.output
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
+    with pytest.raises(ConfigError, match="inside the results folder"), atomic_directory(outer / "figures" / "x"):
+        pass
+    with atomic_directory(outer / "figures", results=False) as d:  # a result's own figures/ is written in it
+        (d / "a.png").write_bytes(b"")
+    assert (outer / "figures" / "a.png").exists()

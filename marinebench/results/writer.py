@@ -67,15 +67,24 @@ def output_folder(folder: Path, option: str = "--out") -> Iterator[None]:
         raise
 
 
+def _is_result(folder: Path) -> bool:
+    """A folder ``run`` or ``sweep`` wrote: it has their ``manifest.json`` and ``metrics.csv``."""
+    return (folder / "manifest.json").is_file() and (folder / "metrics.csv").is_file()
+
+
 def replaceable(target: Path) -> None:
     """Refuse (a :class:`~marinebench.errors.ConfigError` naming ``target``) to replace what is not marinebench's: a
     results folder is written whole in place of the previous one, so ``target`` must be absent, an empty folder, or
     a folder with the ``manifest.json`` and ``metrics.csv`` of a ``run`` or ``sweep`` (a web app's folder has a
     manifest.json too). A file, a symbolic link or a folder of other things at that path (a config named after a
-    source folder, ``--out .``) is someone's work; before, it was replaced and lost."""
+    source folder, ``--out .``) is someone's work; before, it was replaced and lost. Nor may ``target`` lie inside
+    a results folder (``--out results/torben_fig1``): it would be lost when that folder is next replaced."""
     from marinebench.errors import ConfigError
 
     target = Path(target)
+    if inside := next((p for p in target.absolute().parents if _is_result(p)), None):
+        raise ConfigError(str(target), "", f"inside the results folder {inside}, which is replaced whole when it is "
+                          "written again: not written there (choose another --out)")
     if target.is_symlink():
         raise ConfigError(str(target), "", "a symbolic link, not a results folder: not replaced (remove it, or choose "
                           "another --out)")
@@ -83,8 +92,7 @@ def replaceable(target: Path) -> None:
         return
     if not target.is_dir():
         raise ConfigError(str(target), "", "a file, not a results folder: not replaced (move it, or choose another --out)")
-    ours = (target / "manifest.json").is_file() and (target / "metrics.csv").is_file()
-    if not ours and any(target.iterdir()):
+    if not _is_result(target) and any(target.iterdir()):
         raise ConfigError(str(target), "", "a folder of other files (no manifest.json and metrics.csv), not marinebench's "
                           "results: not replaced (move it, or choose another --out)")
 
