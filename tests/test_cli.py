@@ -421,7 +421,8 @@ def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp
 def test_a_sweep_leaves_what_is_not_its_kept_batches_where_it_keeps_them(tmp_path, thing):
     """``.<folder>.partial`` is where a sweep keeps its finished batches, and removes them when they are another
     sweep's: a file there was a traceback; a folder of other files would have been removed. Both are refused before
-    anything runs, and left as they were; the sweep's own kept batches (``key``, ``chunk-*.csv``) are resumed."""
+    anything runs, and left as they were; a folder of a sweep's own files only (here another sweep's batch) is
+    still cleared and used."""
     partial = tmp_path / "o" / ".torben_fig3_sweep_k_dgnss_n2_2s.partial"
     partial.parent.mkdir()
     if thing == "file":
