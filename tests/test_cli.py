@@ -268,11 +268,12 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("args, expected", [
-    (["run", "{cfg}", "--jobs", "-1"], ("error: Invalid value for '--jobs' / '-j': Input should be greater than or "
-                                       "equal to 0 (see 'marinebench run --help')")),
-    (["run", "{cfg}", "--bogus"], "error: No such option: --bogus"),
+    # typer's own checks: their wording changes with typer's version (a pattern), the one line does not
+    (["run", "{cfg}", "--jobs", "-1"], re.compile(r"error: Invalid value for '--jobs' / '-j': .*\b0\b.* \(see 'marinebench "
+                                                  r"run --help'\)$")),
+    (["run", "{cfg}", "--bogus"], re.compile(r"error: No such option:? '?--bogus\b.* \(see 'marinebench run --help'\)$")),
     (["run"], "error: Missing argument 'CONFIG'. (see 'marinebench run --help')"),
-    (["sweep", "k", "--n", "x"], "error: Invalid value for '--n': Input should be a valid integer"),
+    (["sweep", "k", "--n", "x"], re.compile(r"error: Invalid value for '--n': .*\binteger\b")),
     # --seed/--seeds are validated with the config's own bounds, and the error names the option typed
     (["run", "{cfg}", "--seeds", "100000"], "error: --seeds: Input should be less than or equal to 10000"),
     (["sweep", "k", "--seeds", "100000"], "error: --seeds: Input should be less than or equal to 10000"),
@@ -303,7 +304,8 @@ def test_a_bad_option_is_one_line_from_the_console_entry_point(args, expected, t
     captured = capsys.readouterr()
     assert exit_.value.code == 2 and captured.out == ""
     lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(expected), captured.err
+    shown = expected.match(lines[0]) if isinstance(expected, re.Pattern) else lines[0].startswith(expected)
+    assert len(lines) == 1 and shown, captured.err
     assert not (tmp_path / "o").exists()
 
 
@@ -924,9 +926,11 @@ EXTREME = {
     # eps = 1e-300 makes the ESO's gains overflow: before, NaN poles and a LinAlgError traceback
     "liu_eso_eps": ("bejarano_fig2_3", "variants.0.observer.eps=1e-300",
                     "scenario.dt: dt=0.005 s is too large for observer poles up to |lambda|=1e+300 rad/s"),
-    # CLARABEL (Rust) panics on a weight of 1e300; before, a pyo3 PanicException (a BaseException) went through
+    # CLARABEL (Rust) >= 0.9 panics on a weight of 1e300 (the solver crashed; before, a pyo3 PanicException, a
+    # BaseException, went through), older ones fail (solver failed); test_design has the panic on every version
     "solver_panic": ("bejarano_fig7", "variants.0.observer.trace_weight=1e300",
-                     "variants.0.observer: rotational LMI (delta_psi1=0.0, rho=50.0): the solver crashed"),
+                     re.compile(r"variants\.0\.observer: rotational LMI \(delta_psi1=0\.0, rho=50\.0\): (the solver "
+                                r"crashed|solver failed) \(")),
     "singular_model": ("cross_dp_impulse", "scenario.design_vessel.L=1e-300",
                        "scenario.design_vessel: the vessel model cannot be built from these values (LinAlgError"),
     # the CDO's per-sample map overflows: before, a LinAlgError (inf in expm) or an OverflowError (theta**3)
@@ -958,7 +962,8 @@ def test_values_in_range_but_extreme_are_one_line_errors(case):
     res = runner.invoke(app, ["validate", str(ROOT / "configs" / f"{config}.yaml"), "--set", assignment])
     assert res.exit_code == 2 and isinstance(res.exception, SystemExit), res.output
     lines = res.output.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and expected in lines[0], res.output
+    shown = expected.search(lines[0]) if isinstance(expected, re.Pattern) else expected in lines[0]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and shown, res.output
 
 
 def test_liu_eso_gains_of_an_extreme_eps_do_not_overflow():

@@ -206,3 +206,28 @@ def test_design_passes_each_tuning_setting_to_its_lmi(monkeypatch):
     assert calls["rot"] == (3.0, 50.0, 10.0, 0.01)
     assert calls["pos"] == (20.0, 2.0, 0.5, -0.4, 0.4, 100.0, 10.0, 0.01)
     assert calls["verify"] == [(rot, 3.0, 50.0), (pos, 20.0, 100.0)]
+
+
+class PanicException(BaseException):
+    """Named as pyo3's ``pyo3_runtime.PanicException`` (a BaseException), which CLARABEL >= 0.9 raises on
+    extreme data; older CLARABELs fail the same data without panicking, so test_cli cannot show this on every
+    version."""
+
+
+@pytest.mark.parametrize("raised, expected", [(PanicException("index out of bounds"), DesignError),
+                                              (KeyboardInterrupt(), KeyboardInterrupt)])
+def test_a_solver_panic_is_a_design_error_naming_the_design_and_ctrl_c_is_not(raised, expected, monkeypatch):
+    import cvxpy as cp
+
+    from marinebench.design.lmi import solve
+
+    def panics(*args, **kwargs):
+        raise raised
+
+    problem = cp.Problem(cp.Minimize(cp.Variable()))
+    monkeypatch.setattr(problem, "solve", panics)
+    with pytest.raises(expected) as caught:
+        solve(problem, "rotational LMI (delta_psi1=1.0)")
+    if expected is DesignError:
+        assert str(caught.value) == ("rotational LMI (delta_psi1=1.0): the solver crashed (index out of bounds); are "
+                                     "the settings within a sensible range?")
