@@ -281,3 +281,31 @@ def test_a_random_sinusoids_ranges_are_ordered_and_amplitude_and_frequency_non_n
     for bad in ({"amplitude": (-0.1, 0.2)}, {"frequency": (-1.0, 1.0)}):
         with pytest.raises(ValueError, match="amplitude and frequency ranges must be non-negative"):
             RandomSinusoid(**bad)
+
+
+def blas_threads() -> list[int]:
+    """The thread count of each BLAS library loaded (numpy's, scipy's, and those of solvers' wheels)."""
+    from threadpoolctl import threadpool_info
+
+    return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+
+def test_runs_side_by_side_in_threads_keep_one_blas_thread_until_the_last_ends():
+    """Some OpenBLAS builds (numpy 1.26's) round differently with more threads, so a run simulates with one, as in
+    the worker processes. The limit is process-wide: two runs in threads (a threaded Dask worker) end in any order,
+    and the first to end must not lift it from under the other (with one threadpool_limits each it did)."""
+    from threadpoolctl import threadpool_limits
+
+    from marinebench.experiments.runner import one_blas_thread
+
+    with threadpool_limits(2, user_api="blas"):
+        before = blas_threads()  # 2 each, but a library built for one thread keeps 1
+        assert 2 in before
+        first, second = one_blas_thread(), one_blas_thread()
+        first.__enter__()
+        second.__enter__()
+        assert set(blas_threads()) == {1}
+        first.__exit__(None, None, None)  # the first run ends while the second simulates
+        assert set(blas_threads()) == {1}
+        second.__exit__(None, None, None)
+        assert blas_threads() == before  # the caller's setting again

@@ -7,12 +7,15 @@ Observers of the same kind run as one batched group with per-run gains.
 
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from threadpoolctl import threadpool_limits
 
 from marinebench.config import Experiment
 from marinebench.dp_scenario import DpWorld
@@ -226,7 +229,44 @@ def run(
     traces: bool = True,
 ) -> RunResult:
     """Design, check the step, simulate and reduce to tidy metrics; a multi-scenario experiment runs each
-    scenario's variants as one batch and stacks the metrics (``parts`` keeps each scenario's result)."""
+    scenario's variants as one batch and stacks the metrics (``parts`` keeps each scenario's result).
+
+    All of it with one BLAS thread (:class:`_OneBlasThread`)."""
+    with one_blas_thread():
+        return _run(exp, progress, on_start, traces)
+
+
+class _OneBlasThread:
+    """One BLAS thread while any run of this process is simulating, as in the sweep's and ``--jobs``' worker
+    processes and on Dask's: some OpenBLAS builds (numpy 1.26's) round a product differently with more threads,
+    and a run's numbers must not depend on where it ran. The limit is process-wide, so the first run to start
+    sets it and the last to end restores it (runs side by side in threads, as on a threaded Dask worker, would
+    otherwise lift it from under each other)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._runs = 0
+        self._limit = None
+
+    @contextmanager
+    def __call__(self) -> Iterator[None]:
+        with self._lock:
+            if self._runs == 0:
+                self._limit = threadpool_limits(1, user_api="blas")
+            self._runs += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._runs -= 1
+                if self._runs == 0:
+                    self._limit.restore_original_limits()
+
+
+one_blas_thread = _OneBlasThread()
+
+
+def _run(exp: Experiment, progress, on_start, traces: bool) -> RunResult:
     if exp.scenarios is None:
         return _run_single(exp, progress, on_start, traces)
     parts = {name: exp.part(name) for name in exp.scenarios}
