@@ -872,11 +872,14 @@ def main(args: list[str] | None = None) -> None:
     a boxed panel with the usage) is one line naming it, like every other input error, exit code 2; and SIGTERM
     is handled as Ctrl-C (:class:`Terminated`)."""
     signal.signal(signal.SIGTERM, _terminated)
+    argv = sys.argv[1:] if args is None else args
     try:
         code = app(args=args, prog_name="marinebench", standalone_mode=False)
+        if not argv:  # the help, a usage error (click >= 8.2 raises one; click 8.1 returned 0)
+            code = 2
     except _USAGE_ERROR as exc:
         message = " ".join(exc.format_message().split()).replace(": Value error, ", ": ")  # typer checks via pydantic
-        command = exc.ctx.command_path if exc.ctx else _command_named(sys.argv[1:] if args is None else args)
+        command = exc.ctx.command_path if exc.ctx else _command_named(argv)
         if message:  # (none when no arguments printed the help)
             err.print(f"error: {message} (see '{command} --help')", markup=False)
         sys.exit(2)
