@@ -137,6 +137,30 @@ def test_figures_without_traces_or_with_a_variant_the_config_lost_is_one_line(ti
     assert res.exit_code == 2 and res.output.strip() == f"error: {tmp_path / 'nope'}: no such directory"
 
 
+@pytest.mark.parametrize("kind", ["file", "link"])
+def test_figures_leaves_a_file_or_link_named_figures_where_the_figures_go(kind, tiny_config, tmp_path):
+    """A result's figures/ is swapped whole for the new drawings; a file or a symbolic link of that name is not the
+    result's (someone put it there): before, it was swapped out and deleted, rc 0."""
+    import shutil
+
+    folder = _run_with_traces(tiny_config, tmp_path)
+    shutil.rmtree(folder / "figures")
+    if kind == "file":
+        (folder / "figures").write_text("notes")
+    else:
+        (tmp_path / "mine").mkdir()
+        (tmp_path / "mine" / "plot.png").write_text("png")
+        (folder / "figures").symlink_to(tmp_path / "mine")
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    what = "a file" if kind == "file" else "a symbolic link"
+    assert res.exit_code == 2 and res.output.strip() == (f"error: {folder / 'figures'}: {what}, not the result's "
+                                                         "figures folder: not replaced (move it)"), res.output
+    if kind == "file":
+        assert (folder / "figures").read_text() == "notes"
+    else:
+        assert (folder / "figures").is_symlink() and (tmp_path / "mine" / "plot.png").read_text() == "png"
+
+
 @pytest.mark.parametrize(("edit", "expected"), [
     ({"signals": ["sigma_r", "nosuch"]}, "no trace of ['nosuch']"),
     ({"signals": ["r"], "variants": ["added"]}, "no seed-0 run of variants ['added']"),

@@ -151,9 +151,13 @@ def redraw_figures(folder: Path) -> list[str]:
     folder = Path(folder)
     if not (folder / TRACES_FILE).exists():
         raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
+    figures = folder / "figures"
+    if figures.is_symlink() or (figures.exists() and not figures.is_dir()):  # someone's: it would be swapped out
+        raise MarinebenchError(f"{figures}: {'a symbolic link' if figures.is_symlink() else 'a file'}, not the "
+                               "result's figures folder: not replaced (move it)")
     exp, _ = load_experiment(folder / "config.resolved.yaml")
     frame = read_traces(folder / TRACES_FILE)
-    with atomic_directory(folder / "figures", results=False) as figdir:
+    with atomic_directory(figures, results=False) as figdir:
         for name in exp.scenario_names:
             part = exp.part(name)
             try:
