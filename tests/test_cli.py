@@ -1001,3 +1001,24 @@ def test_a_studys_paper_values_are_keyed_by_scenario_metric_and_signal():
     assert res.exit_code == 2 and res.output.strip() == (
         "error: --set: table.paper.values: rise: ['S9/rmse/depth'] are not keyed as the table reads them: "
         "'scenario/metric/signal' (scenarios: S1, S2-C1, S2-C2, S3)"), res.output
+
+
+def test_results_are_utf8_whatever_the_locales_encoding(tmp_path):
+    """Tables, claims, configs and manifests hold δ, σ, ≈: they are written as UTF-8 under any locale. Before, a
+    process whose locale encoding is ASCII (here forced: no UTF-8 mode, no C-locale coercion; a Latin-1 locale is
+    alike) wrote nothing, with a UnicodeEncodeError traceback."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    probe = [sys.executable, "-c", "import locale; print(locale.getpreferredencoding(False))"]
+    assert subprocess.run(probe, env=env, capture_output=True, text=True, check=True).stdout.strip() == "ANSI_X3.4-1968"
+    out = tmp_path / "out"
+    res = subprocess.run([sys.executable, "-m", "marinebench.cli", "run", str(ROOT / "configs" / "bejarano_fig6.yaml"),
+                          "--profile", "quick", "--seeds", "1", "--jobs", "1", "--quiet", "--out", str(out)],
+                         env=env, capture_output=True, text=True, cwd=tmp_path, check=False)
+    assert res.returncode == 0, res.stderr
+    texts = {p.name: p.read_text(encoding="utf-8") for p in (out / "bejarano_fig6").iterdir() if p.is_file()}
+    assert set(texts) == {"config.resolved.yaml", "manifest.json", "metrics.csv", "table.md", "claims.md"}
+    assert any(not t.isascii() for t in texts.values())

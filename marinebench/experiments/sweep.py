@@ -675,7 +675,7 @@ CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(tar
 def _kept_key(partial: Path) -> str | None:
     """The inputs key the kept chunks of ``partial`` were run for (None when it cannot be read)."""
     try:
-        return (partial / "key").read_text().strip()
+        return (partial / "key").read_text(encoding="utf-8").strip()
     except (OSError, UnicodeDecodeError):
         return None
 

@@ -96,11 +96,11 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
     if claims is None:
         claims = evaluate_claims(exp, metrics)
     with atomic_directory(out_dir) as tmp:
-        (tmp / "config.resolved.yaml").write_text(resolved_yaml(exp))
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(exp), encoding="utf-8")
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
-        (tmp / "table.md").write_text(markdown_table(exp, summarise(metrics)))
+        (tmp / "table.md").write_text(markdown_table(exp, summarise(metrics)), encoding="utf-8")
         if claims:
-            (tmp / "claims.md").write_text(claims_markdown(exp, claims))
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims), encoding="utf-8")
         if exp.engine.write_traces:
             write_traces(result, tmp / TRACES_FILE)
         figdir = tmp / "figures"
@@ -126,7 +126,8 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
                 + list(exp.assumptions),
                 designs=result.designs,
                 claims=manifest_entries(claims),
-            )
+            ),
+            encoding="utf-8",
         )
     return out_dir
 
@@ -205,14 +206,14 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
         claims = [] if grid else sweep_claims(metrics, base.sweep)
         mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
-        (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)))
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)), encoding="utf-8")
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
-                                                for metric in shown))
+                                                for metric in shown), encoding="utf-8")
         if claims:
-            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"))
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"), encoding="utf-8")
         if mapped:
             own = {p: tuning(base, p) for p in params}
-            (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own))
+            (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own), encoding="utf-8")
         (tmp / "figures").mkdir()
         figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
         (tmp / "manifest.json").write_text(manifest(
@@ -221,5 +222,5 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
             horizon=exp.scenario.horizon, dt=exp.scenario.dt, **run_info,
             total_time_s=round(time.perf_counter() - started, 3),
             assumptions=model_assumptions({"": exp.scenario}, exp.variants) + list(base.assumptions),
-            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})))
+            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})), encoding="utf-8")
     return claims, mapped

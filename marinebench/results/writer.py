@@ -206,7 +206,7 @@ def atomic_write_text(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600: give the file an ordinary file's mode
-        with os.fdopen(fd, "w") as fh:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         os.replace(tmp, path)
     except BaseException:
@@ -226,7 +226,7 @@ def versions() -> dict[str, str]:
 
 def _cpu_model() -> str:
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
+        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace").splitlines():
             if line.startswith("model name"):
                 return line.split(":", 1)[1].strip()
     except OSError:
@@ -252,12 +252,13 @@ def git_revision() -> str:
     """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` outside a git checkout."""
     root = Path(__file__).resolve().parents[2]  # the checkout holding marinebench/ (an editable install)
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10, check=False)
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, encoding="utf-8",
+                             errors="replace", timeout=10, check=False)
         if sha.returncode:
             return "unknown"
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--", "marinebench", "configs", "scenarios", "pyproject.toml"],
-            cwd=root, capture_output=True, text=True, timeout=10, check=False,
+            cwd=root, capture_output=True, encoding="utf-8", errors="replace", timeout=10, check=False,
         )
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
