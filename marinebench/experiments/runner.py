@@ -266,7 +266,8 @@ class _OneBlasThread:
 one_blas_thread = _OneBlasThread()
 
 
-def _run(exp: Experiment, progress, on_start, traces: bool) -> RunResult:
+def _run(exp: Experiment, progress: Callable[[int], None] | None, on_start: Callable[[int], None] | None,
+         traces: bool) -> RunResult:
     if exp.scenarios is None:
         return _run_single(exp, progress, on_start, traces)
     parts = {name: exp.part(name) for name in exp.scenarios}

@@ -210,7 +210,8 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
                                                 for metric in shown), encoding="utf-8")
         if claims:
-            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"), encoding="utf-8")
+            (tmp / "claims.md").write_text(claims_markdown(exp, claims, where="group", title=f"sweep of {config.name}"),
+                                           encoding="utf-8")
         if mapped:
             own = {p: tuning(base, p) for p in params}
             (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own), encoding="utf-8")
@@ -222,5 +223,6 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
             horizon=exp.scenario.horizon, dt=exp.scenario.dt, **run_info,
             total_time_s=round(time.perf_counter() - started, 3),
             assumptions=model_assumptions({"": exp.scenario}, exp.variants) + list(base.assumptions),
-            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})), encoding="utf-8")
+            claims=manifest_entries(claims), **({"grid_claims": grid_manifest_entries(mapped)} if grid else {})),
+            encoding="utf-8")
     return claims, mapped
