@@ -220,8 +220,8 @@ def test_a_long_title_is_wrapped_to_the_figures_width_not_cut_off(tmp_path, draw
 
 
 def test_a_sweep_panel_marks_the_variants_own_value_and_labels_a_log_axis_in_plain_numbers(tmp_path, drawn):
-    """Fig. 3: a dotted line at Table I's k = 0.7 and δ = 2.5 s (none for c_ε, whose fixed ε hides the variant's own
-    value); δ's log axis reads 0.2 … 10, not 2×10⁻¹ … 10¹."""
+    """Fig. 3: a dotted line at Table I's k = 0.7, δ = 2.5 s and ε = [0.5, 0.5, 0.05], which is c_ε = 5 of the
+    sweep's fixed ε = [0.1, 0.1, 0.01]; δ's log axis reads 0.2 … 10, not 2×10⁻¹ … 10¹."""
     from marinebench.experiments.sweep import sweep_figure
 
     exp = load_experiment(ROOT / "configs" / "torben_fig3.yaml")[0]
@@ -237,7 +237,7 @@ def test_a_sweep_panel_marks_the_variants_own_value_and_labels_a_log_axis_in_pla
     def dotted(ax):
         return [line.get_xdata()[0] for line in ax.get_lines() if line.get_linestyle() == ":"]
 
-    assert dotted(k_ax) == [0.7] and dotted(delta_ax) == [2.5] and dotted(eps_ax) == []
+    assert dotted(k_ax) == [0.7] and dotted(delta_ax) == [2.5] and dotted(eps_ax) == [5.0]
     assert "dotted: resetting's own value" in " ".join(fig._suptitle.get_text().split())
     fig.canvas.draw()
     labels = {t.get_text() for t in delta_ax.get_xticklabels(which="both") if t.get_text()}

@@ -47,7 +47,16 @@ def test_the_figure_marks_the_variants_own_tuning_where_it_is_a_number_in_range(
 
     torben, _ = load_experiment(CFG)
     assert (tuning(torben, "k"), tuning(torben, "delta")) == (0.7, 2.5)
-    assert tuning(torben, "eps") is None  # c_eps scales the parameter's fixed eps: the variant's own eps is no c_eps
+    # c_eps scales the parameter's fixed eps = [0.1, 0.1, 0.01]: Table I's eps = [0.5, 0.5, 0.05] is c_eps = 5, and
+    # the variant's own eps_scale multiplies it; an eps that no one c_eps gives, or out of range, is not marked
+    assert tuning(torben, "eps") == 5.0
+    scaled, _ = load_experiment(CFG, sets=["variants[resetting].observer.eps_scale=0.4"])
+    assert tuning(scaled, "eps") == pytest.approx(2.0, rel=1e-12)
+    for other in ("eps=[0.5, 0.5, 0.1]", "eps_scale=0.01"):
+        assert tuning(load_experiment(CFG, sets=[f"variants[resetting].observer.{other}"])[0], "eps") is None, other
+    # only a fixed setting of the scaled key itself says what the scale means
+    moved, _ = load_experiment(CFG, sets=["sweep.params.eps.fixed={eps: [0.1, 0.1, 0.01], k: 0.5}"])
+    assert tuning(moved, "eps") is None
     tijjani, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     assert (tuning(tijjani, "yaw_alpha"), tuning(tijjani, "yaw_k0")) == (1.1, 0.72)  # Table II, not set in the file
     # outside the swept range (here, delta = 2.5 above [0.15, 2]) there is nothing to mark on the axis
@@ -244,3 +253,6 @@ def test_a_group_whose_every_run_diverges_fails_its_claims_and_is_said_once(tmp_
             monkeypatch.undo()
         empty = next(ax for ax in figures[0].axes if ax.get_title() == "J_tot: dgnss")
         assert [t.get_text() for t in empty.texts] == ["every run diverged"] and empty.get_legend() is None
+        # the other surface crosses Table I's tuning: k = 0.7 and eps = [0.5, 0.5, 0.05], c_eps = 5
+        full = next(ax for ax in figures[0].axes if ax.get_title() == "J_tot: dualband")
+        assert "resetting (0.7, 5)" in [t.get_text() for t in full.get_legend().get_texts()]

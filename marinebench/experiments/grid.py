@@ -138,16 +138,17 @@ def grid_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path: 
 
 def _mark(ax, m: pd.DataFrame, variant: str, own: tuple) -> None:
     """A heat map's marks: its lowest point starred (none on a flat surface), ``variant``'s own tuning ``own`` (p1, p2)
-    crossed (none for a parameter without one), and 'every run diverged' across a surface without a value."""
+    crossed (none for a parameter without one); a surface without a value says 'every run diverged' instead."""
     values = m.to_numpy(dtype=float)
-    if np.isfinite(values).any() and np.nanmax(values) > np.nanmin(values):
+    if not np.isfinite(values).any():
+        ax.text(0.5, 0.5, "every run diverged", transform=ax.transAxes, ha="center", va="center")
+        return
+    if np.nanmax(values) > np.nanmin(values):
         i, j = np.unravel_index(np.nanargmin(values), values.shape)
         ax.plot(m.columns[j], m.index[i], "*", color="white", mec="black", ms=12, label=f"lowest {values[i, j]:.3g}")
     if None not in own:
         y, x = own
         ax.plot(x, y, "x", color="red", ms=9, mew=2, label=f"{variant} ({y:g}, {x:g})")
-    if not np.isfinite(values).any():
-        ax.text(0.5, 0.5, "every run diverged", transform=ax.transAxes, ha="center", va="center")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7, loc="best")
 
