@@ -28,6 +28,9 @@ def test_run_writes_every_output(tiny_config, tmp_path):
     man = json.loads((d / "manifest.json").read_text())
     assert man["seed"] == 2024 and man["versions"]["numpy"] and man["git_revision"] and man["assumptions"]
     assert man["machine"]["cores"] >= 1 and man["machine"]["cpu"] and isinstance(man["machine"]["numpy_simd"], list)
+    from marinebench.provenance import package_digest
+
+    assert man["source_digest"] == package_digest() and len(man["source_digest"]) == 64  # the code, installed or not
     assert (d / "figures" / "u.png").stat().st_size > 1000 and (d / "figures" / "sv.png").exists()
     table = (d / "table.md").read_text()
     assert "e_u paper" in table and "0.09" in table and "not computed" in table

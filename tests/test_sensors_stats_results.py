@@ -284,7 +284,8 @@ def test_apply_set_star_stands_for_every_key_or_item():
 
 def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
     """The manifest's revision is that of the checkout holding the package, '-dirty' when its sources or
-    configs differ from the commit (a copy of writer.py in a throwaway repository of the same layout)."""
+    configs differ from the commit (a copy of writer.py in a throwaway repository of the same layout), and
+    'unknown' for a copy installed under the checkout."""
     import importlib.util
     import shutil
     import subprocess
@@ -309,6 +310,17 @@ def test_git_revision_marks_a_changed_source_tree_dirty(tmp_path):
     (tmp_path / "notes.txt").write_text("not a source\n")  # files outside the sources do not count
     (tmp_path / "configs" / "a.yaml").write_text("seed: 1\n")
     assert copy.git_revision() == head
+    # an installed copy (pip install . into a .venv of the checkout) is not the checkout's code: HEAD may have
+    # moved on since it was installed, so its revision is unknown (the manifest's source_digest names it)
+    site = tmp_path / ".venv" / "lib" / "site-packages" / "marinebench" / "results"
+    site.mkdir(parents=True)
+    shutil.copy(writer.__file__, site / "writer.py")
+    (tmp_path / ".gitignore").write_text(".venv/\n")
+    spec = importlib.util.spec_from_file_location("writer_installed", site / "writer.py")
+    installed = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(installed)
+    assert installed.git_revision() == "unknown"
+    assert copy.git_revision() == head  # the checkout's own copy still knows its commit
 
 
 def test_summary_per_cell_in_order_of_first_appearance_diverged_runs_counted_not_averaged():

@@ -24,6 +24,8 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
+from marinebench.provenance import package_digest
+
 PACKAGES = ("marinebench", "numpy", "scipy", "cvxpy", "clarabel", "pydantic", "pandas", "matplotlib", "typer", "pyyaml")
 
 
@@ -249,18 +251,22 @@ def machine() -> dict[str, object]:
 
 
 def git_revision() -> str:
-    """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` outside a git checkout."""
+    """``<sha>`` or ``<sha>-dirty`` of the source tree, or ``unknown`` when the imported package is not the one of a
+    git checkout: an installed copy (``pip install .``) lies in site-packages, which may sit inside a checkout (a
+    ``.venv`` in it) whose HEAD need not be the code that runs; :func:`~marinebench.provenance.package_digest`,
+    which every manifest also records as ``source_digest``, names the code either way."""
     root = Path(__file__).resolve().parents[2]  # the checkout holding marinebench/ (an editable install)
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, encoding="utf-8",
-                             errors="replace", timeout=10, check=False)
-        if sha.returncode:
+        sha = subprocess.run(["git", "rev-parse", "--show-toplevel", "HEAD"], cwd=root, capture_output=True,
+                             encoding="utf-8", errors="replace", timeout=10, check=False)
+        lines = sha.stdout.splitlines()
+        if sha.returncode or len(lines) != 2 or Path(lines[0]).resolve() != root:
             return "unknown"
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--", "marinebench", "configs", "scenarios", "pyproject.toml"],
             cwd=root, capture_output=True, encoding="utf-8", errors="replace", timeout=10, check=False,
         )
-        return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+        return lines[1].strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
@@ -270,6 +276,7 @@ def manifest(**fields) -> str:
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),  # quoted: pastes back into a shell
         "git_revision": git_revision(),
+        "source_digest": package_digest(),
         "versions": versions(),
         "machine": machine(),
         **fields,
