@@ -353,6 +353,30 @@ def test_version():
     assert res.output.strip() in (f"marinebench {__version__}", f"marinebench {__version__} (git {git_revision()})")
 
 
+def test_python_m_marinebench_is_the_command_and_its_manifests_say_marinebench(tmp_path, monkeypatch):
+    """``python -m marinebench`` (a scripts folder not on PATH) runs the command, and a manifest written under it
+    (argv[0] is then the module's file) records ``marinebench ...``, which pastes back into a shell; a Python
+    program calling the API is named as itself."""
+    import subprocess
+    import sys
+
+    import marinebench
+    from marinebench import __version__
+    from marinebench.results import writer
+
+    done = subprocess.run([sys.executable, "-m", "marinebench", "--version"], capture_output=True, text=True, cwd=tmp_path,
+                          check=False)
+    assert done.returncode == 0 and done.stdout.startswith(f"marinebench {__version__}"), done
+    done = subprocess.run([sys.executable, "-m", "marinebench", "list"], capture_output=True, text=True, cwd=tmp_path, check=False)
+    assert done.returncode == 0 and "resetting_fto" in done.stdout, done
+    package = Path(marinebench.__file__).parent
+    for started in (package / "__main__.py", package / "cli.py"):
+        monkeypatch.setattr(sys, "argv", [str(started), "run", "a b.yaml"])
+        assert json.loads(writer.manifest())["command"] == "marinebench run 'a b.yaml'"
+    monkeypatch.setattr(sys, "argv", [str(tmp_path / "study.py"), "--fast"])
+    assert json.loads(writer.manifest())["command"] == "study.py --fast"
+
+
 def test_an_unquoted_true_where_a_word_is_expected_gets_a_hint(tmp_path):
     """`depth_rate: true` (the option named 'true') is a YAML boolean: the error says why it was refused."""
     scenario = tmp_path / "s1.yaml"

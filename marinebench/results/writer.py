@@ -271,10 +271,22 @@ def git_revision() -> str:
         return "unknown"
 
 
+def _program() -> str:
+    """The command's name as a shell would take it back: ``marinebench`` for the console script and for ``python -m
+    marinebench`` (or ``-m marinebench.cli``), whose ``argv[0]`` is the module's file; else the script's name (a
+    Python program calling the API)."""
+    here = Path(__file__).resolve().parents[1]
+    try:
+        started = Path(sys.argv[0]).resolve()
+    except (OSError, RuntimeError):  # a loop of symbolic links
+        return Path(sys.argv[0]).name
+    return "marinebench" if started in (here / "__main__.py", here / "cli.py") else Path(sys.argv[0]).name
+
+
 def manifest(**fields) -> str:
     doc = {
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),  # quoted: pastes back into a shell
+        "command": shlex.join([_program(), *sys.argv[1:]]),  # quoted: pastes back into a shell
         "git_revision": git_revision(),
         "source_digest": package_digest(),
         "versions": versions(),
