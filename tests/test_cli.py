@@ -351,6 +351,10 @@ def test_version():
     res = runner.invoke(app, ["--version"])
     assert res.exit_code == 0
     assert res.output.strip() in (f"marinebench {__version__}", f"marinebench {__version__} (git {git_revision()})")
+    # the installed distribution's version (manifests' versions.marinebench) is read from __version__ at install
+    from importlib.metadata import version
+
+    assert version("marinebench") == __version__
 
 
 def test_python_m_marinebench_is_the_command_and_its_manifests_say_marinebench(tmp_path, monkeypatch):
