@@ -117,6 +117,7 @@ def test_report_shows_each_manifest_and_the_claims_overview(report, tmp_path):
     manifest = json.loads(next((root / "new").rglob("manifest.json")).read_text())
     assert f"<tr><th>seed</th><td>{manifest['seed']}</td></tr>" in html
     assert f"<tr><th>runs</th><td>{manifest['runs']}</td></tr>" in html
+    assert f"<tr><th>source_digest</th><td>{manifest['source_digest']}</td></tr>" in html  # the code, installed or not
     assert "(no manifest)" not in html and "<p>Assumptions:</p>" in html
     name = next((root / "new").rglob("manifest.json")).parent.name
     assert f'<li><a href="#{name}">{name}</a></li>' in html and html.count(f'<h2 id="{name}">{name}</h2>') == 1

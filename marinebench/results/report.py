@@ -75,7 +75,7 @@ def _manifest_html(d: Path) -> str:
     m = read_manifest(d)
     if not m:
         return "<p>(no manifest)</p>"
-    keys = ["created", "git_revision", "model", "seed", "seeds", "runs", "diverged_runs", "dt", "horizon", "wall_time_s", "command"]
+    keys = ["created", "git_revision", "source_digest", "model", "seed", "seeds", "runs", "diverged_runs", "dt", "horizon", "wall_time_s", "command"]
     rows = "".join(f"<tr><th>{k}</th><td>{html.escape(str(m.get(k, '')))}</td></tr>" for k in keys if k in m)
     versions = ", ".join(f"{k} {v}" for k, v in m.get("versions", {}).items())
     assumptions = "".join(f"<li>{html.escape(a)}</li>" for a in m.get("assumptions", []))
