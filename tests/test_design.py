@@ -1,5 +1,10 @@
 """LMI designs re-verified independently of the solver (numpy only)."""
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -17,6 +22,8 @@ from marinebench.design.lmi import (
 )
 from marinebench.errors import DesignError
 from marinebench.observers.bejarano import BejaranoTuning, design
+
+CONFIGS = Path(__file__).parent.parent / "configs"
 
 
 def max_eig(X):
@@ -231,3 +238,39 @@ def test_a_solver_panic_is_a_design_error_naming_the_design_and_ctrl_c_is_not(ra
     if expected is DesignError:
         assert str(caught.value) == ("rotational LMI (delta_psi1=1.0): the solver crashed (index out of bounds); are "
                                      "the settings within a sensible range?")
+
+
+@pytest.mark.parametrize("panics", [False, True])
+def test_what_the_solver_writes_to_stderr_is_kept_unless_it_panicked(panics, monkeypatch, capfd):
+    """Rust's panic hook writes its message (and, under RUST_BACKTRACE, 100+ lines of backtrace) to fd 2 before the
+    PanicException reaches Python; the DesignError says it in one line, so that text is dropped. A solve that does
+    not panic has its stderr output written back."""
+    import cvxpy as cp
+
+    from marinebench.design.lmi import solve
+
+    def writes_to_fd2(*args, **kwargs):
+        os.write(2, b"thread '<unnamed>' panicked at src/lib.rs\n")
+        if panics:
+            raise PanicException("Eigval error")
+
+    problem = cp.Problem(cp.Minimize(cp.Variable()))
+    monkeypatch.setattr(problem, "solve", writes_to_fd2)
+    with pytest.raises(DesignError):  # a problem that solve() did not solve is not OPTIMAL either
+        solve(problem, "rotational LMI (delta_psi1=1.0)")
+    os.write(2, b"after\n")
+    err = capfd.readouterr().err
+    assert err == ("after\n" if panics else "thread '<unnamed>' panicked at src/lib.rs\nafter\n")
+
+
+def test_a_crashing_design_prints_one_line_even_with_a_rust_backtrace(tmp_path):
+    """End to end, in a process of its own (the panic hook writes to fd 2, which CliRunner does not see): CLARABEL
+    >= 0.9 panics on a weight of 1e300 (older ones fail without a panic); either way stderr is the one error line."""
+    env = {**os.environ, "RUST_BACKTRACE": "1"}
+    done = subprocess.run([sys.executable, "-m", "marinebench", "validate", str(CONFIGS / "bejarano_fig7.yaml"),
+                           "--set", "variants.0.observer.trace_weight=1e300"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, check=False)
+    assert done.returncode == 2
+    assert done.stdout == ""
+    assert done.stderr.startswith("error: --set: variants.0.observer: rotational LMI (delta_psi1=0.0, rho=50.0): ")
+    assert done.stderr.count("\n") == 1, done.stderr

@@ -22,6 +22,10 @@ L_{p_z} = P_p^-1 W_p -> ``L_pz``, k_{omega,p} -> ``k_omega``, k_{n,p} -> ``k_n``
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
+import threading
 import warnings
 from dataclasses import dataclass
 from functools import lru_cache
@@ -70,21 +74,69 @@ def solve(problem: cp.Problem, what: str, options: dict[str, float] | None = Non
 
     A solver that fails, or panics (CLARABEL is Rust: on extreme data such as a weight of 1e300 it can abort with a
     ``pyo3_runtime.PanicException``, which derives from BaseException), or a problem that is not solved, raises
-    :class:`DesignError` naming ``what``."""
+    :class:`DesignError` naming ``what``; what the panic wrote to stderr is dropped (see :func:`_solve_quietly`)."""
     import cvxpy as cp
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **(SOLVER_OPTIONS if options is None else options))
+            _solve_quietly(problem, SOLVER_OPTIONS if options is None else options)
     except cp.error.SolverError as exc:
         raise DesignError(f"{what}: solver failed ({exc})") from None
     except BaseException as exc:
-        if type(exc).__name__ != "PanicException":  # KeyboardInterrupt and the rest go on up
+        if not _is_panic(exc):  # KeyboardInterrupt and the rest go on up
             raise
         raise DesignError(f"{what}: the solver crashed ({exc}); are the settings within a sensible range?") from None
     if problem.status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE):
         raise DesignError(f"{what}: LMI problem is {problem.status}")
+
+
+def _is_panic(exc: BaseException) -> bool:
+    return type(exc).__name__ == "PanicException"
+
+
+_STDERR_HELD = threading.Lock()  # one solve at a time holds file descriptor 2 (two would restore each other's copy)
+
+
+def _solve_quietly(problem: cp.Problem, options: dict[str, float]) -> None:
+    """``problem.solve`` with file descriptor 2 held in a temporary file, which is written back to stderr unless the
+    solver panicked: Rust's panic hook writes its message, and under ``RUST_BACKTRACE`` a backtrace of 100+ lines,
+    straight to fd 2, before the exception reaches Python, where :func:`solve` says it in one line. Other threads'
+    stderr output during a solve (milliseconds) comes after it; without an fd 2 the solve runs as it is."""
+    import cvxpy as cp
+
+    with _STDERR_HELD:
+        try:
+            saved = os.dup(2)
+        except OSError:
+            problem.solve(solver=cp.CLARABEL, **options)
+            return
+        with tempfile.TemporaryFile() as held:
+            _flush_stderr()
+            os.dup2(held.fileno(), 2)
+            panicked = False
+            try:
+                problem.solve(solver=cp.CLARABEL, **options)
+            except BaseException as exc:
+                panicked = _is_panic(exc)
+                raise
+            finally:
+                _flush_stderr()
+                os.dup2(saved, 2)
+                os.close(saved)
+                if not panicked:
+                    held.seek(0)
+                    _write_fd2(held.read())
+
+
+def _flush_stderr() -> None:
+    if sys.stderr is not None:  # None under pythonw
+        sys.stderr.flush()
+
+
+def _write_fd2(data: bytes) -> None:
+    while data:
+        data = data[os.write(2, data) :]
 
 
 def _scale_rows(gain: np.ndarray, s: float, block: int) -> np.ndarray:
