@@ -553,7 +553,7 @@ def sweep_figure(metrics: pd.DataFrame, shown: list[str], exp: Experiment, path:
     """Fig. 3 layout: one panel per parameter (and a column per metric of ``shown``, and per signal when several
     curves share each), the KPI against the value, one curve per curve of :func:`curves_of` (group or variant; and
     signal, when there are several and one curve each): the mean over seeds, with the seeds' range shaded when
-    there are several, and a dotted line at ``sweep.variant``'s own value (Table I's k = 0.7 and δ = 2.5 s)."""
+    there are several, and a dotted line at ``sweep.variant``'s own value (Table I's k = 0.7, δ = 2.5 s and c_ε = 5)."""
     per_metric = {metric: _per_seed_curves(metrics, metric, exp.sweep.signals) for metric in shown}
     params = list(dict.fromkeys(p for curves in per_metric.values() for p, _, _ in curves))
     columns = []  # (metric, its curves in the panel, the signals they show)
