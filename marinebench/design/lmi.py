@@ -27,6 +27,8 @@ import sys
 import tempfile
 import threading
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import TYPE_CHECKING
@@ -74,13 +76,13 @@ def solve(problem: cp.Problem, what: str, options: dict[str, float] | None = Non
 
     A solver that fails, or panics (CLARABEL is Rust: on extreme data such as a weight of 1e300 it can abort with a
     ``pyo3_runtime.PanicException``, which derives from BaseException), or a problem that is not solved, raises
-    :class:`DesignError` naming ``what``; what the panic wrote to stderr is dropped (see :func:`_solve_quietly`)."""
+    :class:`DesignError` naming ``what``; what the panic wrote to stderr is dropped (:func:`_stderr_unless_panic`)."""
     import cvxpy as cp
 
     try:
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _stderr_unless_panic():
             warnings.simplefilter("ignore", UserWarning)
-            _solve_quietly(problem, SOLVER_OPTIONS if options is None else options)
+            problem.solve(solver=cp.CLARABEL, **(SOLVER_OPTIONS if options is None else options))
     except cp.error.SolverError as exc:
         raise DesignError(f"{what}: solver failed ({exc})") from None
     except BaseException as exc:
@@ -98,25 +100,24 @@ def _is_panic(exc: BaseException) -> bool:
 _STDERR_HELD = threading.Lock()  # one solve at a time holds file descriptor 2 (two would restore each other's copy)
 
 
-def _solve_quietly(problem: cp.Problem, options: dict[str, float]) -> None:
-    """``problem.solve`` with file descriptor 2 held in a temporary file, which is written back to stderr unless the
-    solver panicked: Rust's panic hook writes its message, and under ``RUST_BACKTRACE`` a backtrace of 100+ lines,
-    straight to fd 2, before the exception reaches Python, where :func:`solve` says it in one line. Other threads'
-    stderr output during a solve (milliseconds) comes after it; without an fd 2 the solve runs as it is."""
-    import cvxpy as cp
-
+@contextmanager
+def _stderr_unless_panic() -> Iterator[None]:
+    """Hold file descriptor 2 in a temporary file and write it back to stderr unless the block raised a panic: Rust's
+    panic hook writes its message, and under ``RUST_BACKTRACE`` a backtrace of 100+ lines, straight to fd 2 before
+    the exception reaches Python, where :func:`solve` says it in one line. Other threads' stderr output during a
+    solve (milliseconds) comes after it; without an fd 2 the block runs as it is."""
     with _STDERR_HELD:
         try:
             saved = os.dup(2)
         except OSError:
-            problem.solve(solver=cp.CLARABEL, **options)
+            yield
             return
         with tempfile.TemporaryFile() as held:
             _flush_stderr()
             os.dup2(held.fileno(), 2)
             panicked = False
             try:
-                problem.solve(solver=cp.CLARABEL, **options)
+                yield
             except BaseException as exc:
                 panicked = _is_panic(exc)
                 raise
