@@ -274,3 +274,25 @@ def test_a_crashing_design_prints_one_line_even_with_a_rust_backtrace(tmp_path):
     assert done.stdout == ""
     assert done.stderr.startswith("error: --set: variants.0.observer: rotational LMI (delta_psi1=0.0, rho=50.0): ")
     assert done.stderr.count("\n") == 1, done.stderr
+
+
+FORKED_SOLVE = """
+import os, signal
+from marinebench.design.lmi import positional_design
+positional_design(1.2, 1.0, 1.0, -0.8727, 0.8727, 50.0)  # k_n > 0: the problem CLARABEL's parallel parts take
+pid = os.fork()
+if pid == 0:
+    signal.alarm(60)  # a child waiting on threads the fork did not copy ends here instead of hanging
+    positional_design(1.2, 1.0, 2.0, -0.8727, 0.8727, 50.0)  # a design of its own, not in the parent's cache
+    os._exit(0)
+os._exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
+"""
+
+
+def test_a_process_forked_after_a_design_can_solve_one_of_its_own(tmp_path):
+    """``--jobs`` workers are forked from the process that validated (and so designed) the variants. With CLARABEL's
+    default ``max_threads`` (>= 0.10: a thread per core), the first parallel solve starts a thread pool, and a forked
+    child's own solve then waited for ever (here: killed by its alarm, exit -14); single-threaded, it solves."""
+    done = subprocess.run([sys.executable, "-W", "ignore::DeprecationWarning", "-c", FORKED_SOLVE],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=180, check=False)
+    assert done.returncode == 0, done.stderr

@@ -71,18 +71,30 @@ def _sym(X: cp.Expression) -> cp.Expression:
 SOLVER_OPTIONS: dict[str, float] = {}  # CLARABEL settings (its defaults); tests tighten them to show the gains do not move
 
 
+@lru_cache(maxsize=1)
+def _one_thread() -> dict[str, int]:
+    """``max_threads=1`` where CLARABEL has the setting (>= 0.10). Otherwise CLARABEL starts a pool of one thread per
+    core on the first problem that uses its parallel parts (the positional LMI with k_n > 0), and a process forked
+    after that (``--jobs`` workers) would wait for ever on pool threads the fork did not copy as soon as it solved
+    a problem of its own. The designs are small (milliseconds) and their gains are the same to the bit."""
+    import clarabel
+
+    return {"max_threads": 1} if hasattr(clarabel.DefaultSettings(), "max_threads") else {}
+
+
 def solve(problem: cp.Problem, what: str, options: dict[str, float] | None = None) -> None:
     """Solve with CLARABEL; 'inaccurate' solutions are accepted because the designs re-check them in numpy.
 
     A solver that fails, or panics (CLARABEL is Rust: on extreme data such as a weight of 1e300 it can abort with a
     ``pyo3_runtime.PanicException``, which derives from BaseException), or a problem that is not solved, raises
-    :class:`DesignError` naming ``what``; what the panic wrote to stderr is dropped (:func:`_stderr_unless_panic`)."""
+    :class:`DesignError` naming ``what``; what the panic wrote to stderr is dropped (:func:`_stderr_unless_panic`).
+    CLARABEL runs in this thread alone (:func:`_one_thread`), so a process forked later can solve too."""
     import cvxpy as cp
 
     try:
         with warnings.catch_warnings(), _stderr_unless_panic():
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **(SOLVER_OPTIONS if options is None else options))
+            problem.solve(solver=cp.CLARABEL, **{**_one_thread(), **(SOLVER_OPTIONS if options is None else options)})
     except cp.error.SolverError as exc:
         raise DesignError(f"{what}: solver failed ({exc})") from None
     except BaseException as exc:
