@@ -292,7 +292,7 @@ os._exit(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))
 def test_a_process_forked_after_a_design_can_solve_one_of_its_own(tmp_path):
     """``--jobs`` workers are forked from the process that validated (and so designed) the variants. With CLARABEL's
     default ``max_threads`` (>= 0.10: a thread per core), the first parallel solve starts a thread pool, and a forked
-    child's own solve then waited for ever (here: killed by its alarm, exit -14); single-threaded, it solves."""
+    child's own solve then waited for ever (here: until its alarm killed it after 60 s); single-threaded, it solves."""
     done = subprocess.run([sys.executable, "-W", "ignore::DeprecationWarning", "-c", FORKED_SOLVE],
                           capture_output=True, text=True, cwd=tmp_path, timeout=180, check=False)
     assert done.returncode == 0, done.stderr
