@@ -29,6 +29,7 @@ from marinebench.keypaths import did_you_mean, key_path, near_misses, unknown_ke
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import resolve_source, split_source
+from marinebench.settings import lax_boolean
 
 
 class YamlLoader(yaml.SafeLoader):
@@ -384,7 +385,16 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
         exp = Experiment.model_validate(doc)
     except ValidationError as exc:
         raise validation_to_config_error(exc, origins) from None
+    _refuse_lax_booleans(doc, exp.model_dump(), origins)
     return exp, origins
+
+
+def _refuse_lax_booleans(doc: dict, read: dict, origins: dict[str, Path]) -> None:
+    """A boolean where a number belongs, or the reverse, is a wrong type (:func:`settings.lax_boolean`), named
+    in the file (or ``--set``) it came from."""
+    if found := lax_boolean(doc, read):
+        key = ".".join(map(str, found[0]))
+        raise ConfigError(_origin_of(key, origins), key, found[1])
 
 
 def load_checked(path: str | Path, sets: list[str] = (), profile: str | None = None,
@@ -627,9 +637,11 @@ def load_scenario(path: str | Path):
     path = Path(path)
     doc = read_scenario(path)
     try:
-        return TypeAdapter(AnyScenario).validate_python(doc)
+        scenario = TypeAdapter(AnyScenario).validate_python(doc)
     except ValidationError as exc:
         raise validation_to_config_error(exc, {"": path}, AnyScenario) from None
+    _refuse_lax_booleans(doc, scenario.model_dump(), {"": path})
+    return scenario
 
 
 def is_scenario_file(path: Path, _depth: int = 0) -> bool:

@@ -26,7 +26,34 @@ def over(model: type[M], base: dict[str, Any], settings: dict[str, Any], name: s
     if unknown:
         raise ValueError(f"{name}: unknown {what}(s) {unknown} (its {what}s: {', '.join(model.model_fields)})")
     try:
-        return model.model_validate({**base, **settings})
+        read = model.model_validate({**base, **settings})
     except ValidationError as exc:
         err = exc.errors()[0]
         raise ValueError(f"{name}.{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+    if found := lax_boolean(settings, read.model_dump()):
+        raise ValueError(f"{'.'.join(map(str, (name, *found[0])))}: {found[1]}")
+    return read
+
+
+def lax_boolean(given: Any, read: Any, path: tuple[str | int, ...] = ()) -> tuple[tuple[str | int, ...], str] | None:
+    """The first place where pydantic's lax mode took a boolean for a number or a number for a boolean, found by
+    walking what a file gave (``given``) beside what the validated model holds (``read``, its ``model_dump()``):
+    ``seeds: true`` would run 1 seed and ``eps: yes`` mean 1.0 (YAML reads an unquoted true, yes or on as a
+    boolean), ``notch: 1`` would mean true. Returns the key's path below ``given`` and the error message, or None.
+    Places whose shape a validator changed (a scalar spread into a tuple) are not compared."""
+    if isinstance(given, dict) and isinstance(read, dict):
+        pairs = [(k, given[k], read[k]) for k in given if k in read]
+    elif isinstance(given, list) and isinstance(read, list | tuple) and len(given) == len(read):
+        pairs = list(zip(range(len(given)), given, read, strict=True))
+    elif isinstance(given, bool) and isinstance(read, int | float) and not isinstance(read, bool):
+        number = "an integer" if isinstance(read, int) else "a number"
+        return path, (f"Input should be {number}, not a boolean (YAML reads an unquoted true, false, yes, no, on or "
+                      "off as a boolean)")
+    elif isinstance(read, bool) and isinstance(given, int | float) and not isinstance(given, bool):
+        return path, "Input should be true or false, not a number"
+    else:
+        return None
+    for key, g, r in pairs:
+        if found := lax_boolean(g, r, (*path, key)):
+            return found
+    return None

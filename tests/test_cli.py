@@ -393,6 +393,47 @@ def test_an_unquoted_true_where_a_word_is_expected_gets_a_hint(tmp_path):
     assert runner.invoke(app, ["validate", str(scenario)]).exit_code == 0
 
 
+@pytest.mark.parametrize("where, setting, key, wanted", [
+    ("file", "seeds: true", "seeds", "an integer"),
+    ("--set", "variants.0.observer.eps=yes", "variants.0.observer.eps", "a number"),
+    ("--set", "variants.0.observer.k=[on, 3, 1]", "variants.0.observer.k.0", "a number"),
+    ("--set", "variants.0.world.position_noise_scale=true", "variants.0.world.position_noise_scale", "a number"),
+])
+def test_a_boolean_where_a_number_belongs_is_a_wrong_type(tmp_path, where, setting, key, wanted):
+    """pydantic's lax mode would run `seeds: true` as 1 seed and read `eps: yes` as 1.0 (YAML's unquoted yes, on and
+    true are booleans): a one-line error naming the file (or --set) and the key, exit 2, and nothing written."""
+    config = tmp_path / "x.yaml"
+    config.write_text(f"from: {ROOT / 'configs' / 'bejarano_table3.yaml'}\n" + (setting if where == "file" else ""))
+    sets = ["--set", setting] if where == "--set" else []
+    res = runner.invoke(app, ["run", str(config), "--out", str(tmp_path / "out"), "--quiet", *sets])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {'--set' if sets else config}: {key}: Input should be {wanted}, not a boolean (YAML reads an unquoted "
+        "true, false, yes, no, on or off as a boolean)")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_number_where_a_boolean_belongs_is_a_wrong_type(tmp_path):
+    """`notch: 1` in a scenario file, or a flag given as 1 in a controller's settings, would be read as true."""
+    scenario = tmp_path / "dp.yaml"
+    scenario.write_text(f"from: {ROOT / 'scenarios' / 'dp_impulse.yaml'}\nsensors: {{notch: 1}}\n")
+    res = runner.invoke(app, ["validate", str(scenario)])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {scenario}: sensors.notch: Input should be true or false, not a number")
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "tijjani_table3.yaml"),
+                              "--set", "variants.2.controller.disturbance_feedforward=[1, true]"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: variants.2.controller.disturbance_feedforward.0: Input should be true or false, not a number")
+
+
+def test_a_boolean_in_an_observers_partial_settings_is_a_wrong_type():
+    """The CDO's and EO's settings over the scenario's (`cdo: {lmi_decay: ...}`) are checked the same way."""
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "tijjani_observers.yaml"),
+                              "--set", "variants.1.observer.eo.eps=on"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        "error: --set: variants.1.observer.eo.eps: Input should be a number, not a boolean (YAML reads an unquoted "
+        "true, false, yes, no, on or off as a boolean)")
+
+
 def test_a_key_written_twice_is_an_error_not_a_silent_override(tiny_config, tmp_path):
     twice = tmp_path / "twice.yaml"
     twice.write_text(tiny_config.read_text() + "seeds: 3\n")  # the tiny config already says seeds: 2
