@@ -91,10 +91,11 @@ def solve(problem: cp.Problem, what: str, options: dict[str, float] | None = Non
     CLARABEL runs in this thread alone (:func:`_one_thread`), so a process forked later can solve too."""
     import cvxpy as cp
 
+    settings = _one_thread() | (SOLVER_OPTIONS if options is None else options)  # the caller's win
     try:
         with warnings.catch_warnings(), _stderr_unless_panic():
             warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=cp.CLARABEL, **{**_one_thread(), **(SOLVER_OPTIONS if options is None else options)})
+            problem.solve(solver=cp.CLARABEL, **settings)
     except cp.error.SolverError as exc:
         raise DesignError(f"{what}: solver failed ({exc})") from None
     except BaseException as exc:
