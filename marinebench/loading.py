@@ -29,7 +29,7 @@ from marinebench.keypaths import did_you_mean, key_path, near_misses, unknown_ke
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import resolve_source, split_source
-from marinebench.settings import lax_boolean
+from marinebench.settings import YAML_BOOLEANS, lax_boolean
 
 
 class YamlLoader(yaml.SafeLoader):
@@ -342,7 +342,7 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], r
     if unknown:
         msg = "unknown key" + unknown_key_hint(key, allowed)
     elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
-        msg += " (YAML reads an unquoted true, false, yes, no, on or off as a boolean: quote the word)"
+        msg += f" ({YAML_BOOLEANS}: quote the word)"
     where = re.match(r"^([A-Za-z0-9_.-]+): (.+)$", msg)
     if where:  # a cross-field check that names its key, relative to where it sits: 'variants.1.scenarios: ...'
         key, msg = ".".join(filter(None, (key, where[1]))), where[2]

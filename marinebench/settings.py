@@ -15,6 +15,8 @@ STRICT = ConfigDict(extra="forbid", allow_inf_nan=False)
 #: Names that flow into metrics.csv, tables and folder names (experiments, scenarios, variants, metrics, sweep
 #: parameters and groups): no spaces, slashes or pipes.
 NAME = r"^[A-Za-z0-9_.+-]+$"
+#: Why a boolean turned up where a word or a number was meant, for the errors that say so.
+YAML_BOOLEANS = "YAML reads an unquoted true, false, yes, no, on or off as a boolean"
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -47,8 +49,7 @@ def lax_boolean(given: Any, read: Any, path: tuple[str | int, ...] = ()) -> tupl
         pairs = list(zip(range(len(given)), given, read, strict=True))
     elif isinstance(given, bool) and isinstance(read, int | float) and not isinstance(read, bool):
         number = "an integer" if isinstance(read, int) else "a number"
-        return path, (f"Input should be {number}, not a boolean (YAML reads an unquoted true, false, yes, no, on or "
-                      "off as a boolean)")
+        return path, f"Input should be {number}, not a boolean ({YAML_BOOLEANS})"
     elif isinstance(read, bool) and isinstance(given, int | float) and not isinstance(given, bool):
         return path, "Input should be true or false, not a number"
     else:
