@@ -656,6 +656,8 @@ def compare(
         if variants is not None:
             if candidate is not None:
                 fail("give either CANDIDATE or --variants A B, not both")
+            if variants[0] == variants[1]:  # every cell would be "same": a typo, not a comparison
+                fail(f"--variants: A and B are both '{variants[0]}'; name two different variants")
             table = compare_variants(baseline, variants[0], variants[1], metric, tol, paired=not unpaired,
                                      interval=interval or "t")
         else:

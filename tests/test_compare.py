@@ -250,6 +250,7 @@ def test_unusable_inputs_exit_2(tmp_path, base_values):
          "mismatched configs for experiment 'exp' (" + str(tmp_path / "base" / "exp")),
         ([str(tmp_path / "base"), str(tmp_path / "other")], "scenario.horizon; and for 2 more: exp2, exp3"),
         ([str(tmp_path / "base"), "--variants", "a", "zz"], "no variant 'zz'"),
+        ([str(tmp_path / "base"), "--variants", "a", "a"], "error: --variants: A and B are both 'a'; name two different"),
         ([str(tmp_path / "base")], "missing CANDIDATE"),
     ]
     for args, message in cases:
