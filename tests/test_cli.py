@@ -1096,3 +1096,24 @@ def test_results_are_utf8_whatever_the_locales_encoding(tmp_path):
     texts = {p.name: p.read_text(encoding="utf-8") for p in (out / "bejarano_fig6").iterdir() if p.is_file()}
     assert set(texts) == {"config.resolved.yaml", "manifest.json", "metrics.csv", "table.md", "claims.md"}
     assert any(not t.isascii() for t in texts.values())
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/commands.md"])
+def test_the_command_synopses_list_every_option_of_every_command(page):
+    """The synopsis block of the README and docs/commands.md (``marinebench run CONFIG... [--out DIR] ...``) names
+    each command's options, no more and no fewer (an option added to the CLI and not to the synopsis fails here)."""
+    import typer.main
+
+    group = typer.main.get_command(app)
+    text = (ROOT / page).read_text(encoding="utf-8")
+    block = re.search(r"```\n(marinebench run .*?)```", text, re.DOTALL)[1]
+    written: dict[str, set[str]] = {}
+    for line in block.splitlines():
+        if m := re.match(r"marinebench (\w+) (.*)", line):
+            written.setdefault(m[1], set()).update(re.findall(r"--[a-z][a-z-]*", m[2].split("#")[0]))
+    assert set(written) == set(group.commands), page
+    for name, command in group.commands.items():
+        options = [[o for o in p.opts + p.secondary_opts if o.startswith("--")] for p in command.params
+                   if p.param_type_name == "option"]  # an option's aliases: any one of them (--gnss, --groups)
+        wanted = {next((o for o in opts if o in written[name]), opts[0]) for opts in options} - {"--help"}
+        assert written[name] == wanted, (page, name)
