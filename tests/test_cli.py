@@ -1117,3 +1117,14 @@ def test_the_command_synopses_list_every_option_of_every_command(page):
                    if p.param_type_name == "option"]  # an option's aliases: any one of them (--gnss, --groups)
         wanted = {next((o for o in opts if o in written[name]), opts[0]) for opts in options} - {"--help"}
         assert written[name] == wanted, (page, name)
+
+
+def test_the_command_reference_describes_every_option_beyond_its_synopsis():
+    """docs/commands.md promises every option of every command: each long option is named in its text too."""
+    import typer.main
+
+    body = (ROOT / "docs" / "commands.md").read_text(encoding="utf-8").split("```", 2)[2]  # after the synopsis
+    commands = typer.main.get_command(app).commands.values()
+    silent = {o for c in commands for p in c.params if p.param_type_name == "option"
+              for o in p.opts if o.startswith("--") and o != "--help" and not re.search(re.escape(o) + r"\b", body)}
+    assert not silent
