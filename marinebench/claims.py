@@ -42,9 +42,9 @@ class LessClaim(_Claim):
     variants ("the best of them": below each)."""
 
     kind: Literal["less"] = "less"
-    a: str
-    b: str | list[str]
-    factor: float = Field(1.0, gt=0)
+    a: str = Field(..., description="the variant claimed lower")
+    b: str | list[str] = Field(..., description="the variant (or variants: below each) it is compared with")
+    factor: float = Field(1.0, gt=0, description="mean(a) < factor * mean(b): 1 an ordering, 0.8 at least 20 % below")
 
     @property
     def others(self) -> list[str]:
@@ -66,7 +66,7 @@ class OrderClaim(_Claim):
     srise, rise]`` for "RISE > S+RISE > CDO-S+RISE")."""
 
     kind: Literal["order"] = "order"
-    variants: list[str] = Field(..., min_length=2)
+    variants: list[str] = Field(..., min_length=2, description="the variants, lowest mean first")
 
     @property
     def variant_names(self) -> list[str]:
@@ -78,9 +78,10 @@ class WithinClaim(_Claim):
     factor 1.5 of each other"), or each within ``rtol`` of the first variant's ("changes by less than 10 %")."""
 
     kind: Literal["within"] = "within"
-    variants: list[str] = Field(..., min_length=2)
-    factor: float | None = Field(None, gt=1)
-    rtol: float | None = Field(None, gt=0)
+    variants: list[str] = Field(..., min_length=2, description="the variants that agree")
+    factor: float | None = Field(None, gt=1, description="largest / smallest mean at most this (or give rtol)")
+    rtol: float | None = Field(None, gt=0, description="each mean within this fraction of the first variant's "
+                               "(or give factor)")
 
     @model_validator(mode="after")
     def _one_bound(self) -> WithinClaim:
@@ -97,8 +98,8 @@ class AtMostClaim(_Claim):
     """Every seed's value of variant ``a`` is at most ``value`` (e.g. a recovery time within 2 s)."""
 
     kind: Literal["at_most"] = "at_most"
-    a: str
-    value: float
+    a: str = Field(..., description="the variant")
+    value: float = Field(..., description="the bound every seed's value stays at or under, in the metric's unit")
 
     @property
     def variant_names(self) -> list[str]:
@@ -110,7 +111,7 @@ class NearPaperClaim(_Claim):
     paper's value (``table.paper``), either way."""
 
     kind: Literal["near_paper"] = "near_paper"
-    factor: float = Field(2.0, gt=1)
+    factor: float = Field(2.0, gt=1, description="each mean within this factor of the paper's value, either way")
     variants: list[str] | None = Field(None, min_length=1, description="default: those with paper values")
 
     @property
@@ -129,8 +130,8 @@ class _SweepClaim(BaseModel):
     text: str = Field(..., min_length=1, description="the claim, in the paper's words or close to them")
     source: str = Field("", description="where the paper makes it, e.g. 'Fig. 3'")
     param: str = Field(..., description="the swept parameter (a name of sweep.params)")
-    metric: str | None = None
-    signal: str | None = None
+    metric: str | None = Field(None, description="the metric whose curve is checked (default: the first tabulated)")
+    signal: str | None = Field(None, description="the signal whose curve is checked (default: every signal)")
     groups: list[str] | None = Field(None, min_length=1, description="the groups it is checked in (default: all)")
 
 
@@ -139,9 +140,9 @@ class ProbeClaim(_SweepClaim):
     least 20 % below k = 0" is ``{param: k, at: 0.7, vs: 0, factor: 0.8}``."""
 
     kind: Literal["probe"] = "probe"
-    at: float
-    vs: float
-    factor: float = Field(1.0, gt=0)
+    at: float = Field(..., description="the parameter value claimed better")
+    vs: float = Field(..., description="the parameter value it is compared with")
+    factor: float = Field(1.0, gt=0, description="KPI(at) < factor * KPI(vs): 0.8 for at least 20 % below")
 
     @model_validator(mode="after")
     def _two_values(self) -> ProbeClaim:
@@ -155,9 +156,11 @@ class TrendClaim(_SweepClaim):
     curve above ``min_rho`` (``decreasing: true``: below ``-min_rho``)."""
 
     kind: Literal["trend"] = "trend"
-    range: tuple[float, float]
-    min_rho: float = Field(0.0, ge=0, lt=1)
-    decreasing: bool = False
+    range: tuple[float, float] = Field(..., description="[low, high] of the parameter, ends "
+                                       "included, over which the trend is checked (at least three points)")
+    min_rho: float = Field(0.0, ge=0, lt=1, description="the Spearman rank correlation must exceed it "
+                           "(decreasing: be below minus it)")
+    decreasing: bool = Field(False, description="claim a fall instead of a rise")
 
 
 class GroupsClaim(_SweepClaim):
@@ -168,8 +171,8 @@ class GroupsClaim(_SweepClaim):
     ``{param: yaw_noise, above: srise, below: cdo_srise, signal: yaw}``."""
 
     kind: Literal["groups"] = "groups"
-    above: str
-    below: str
+    above: str = Field(..., description="the group (or variant) whose curve is higher")
+    below: str = Field(..., description="the group (or variant) whose curve is lower")
     factor: float = Field(1.0, gt=0, description="below's curve under factor × above's at every value (0.7: at least 30 % "
                           "under it; 1.1: at most 10 % over it)")
 

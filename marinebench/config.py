@@ -104,7 +104,7 @@ class JTotMetric(BaseModel):
 
     model_config = STRICT
     kind: Literal["j_tot"] = "j_tot"
-    name: str = Field("J_tot", pattern=NAME)
+    name: str = Field("J_tot", pattern=NAME, description="metric name in metrics.csv")
     t_start: float = Field(0.0, ge=0, description="window start [s]")
     t_end: float | None = Field(None, gt=0, description="window end [s] (default: the horizon)")
     from_fraction: float | None = Field(
@@ -130,8 +130,9 @@ class IntMetric(BaseModel):
 
     model_config = STRICT
     kind: Literal["int"] = "int"
-    name: str = Field("int", pattern=NAME)
-    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
+    name: str = Field("int", pattern=NAME, description="metric name in metrics.csv")
+    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"],
+                                                   description="the DOFs whose control input is integrated")
     tol: dict[str, float] = Field(
         default_factory=lambda: {"depth": 0.01, "yaw": 0.0175},
         description="tracking-error tolerance that marks 'reached' [m, rad]",
@@ -149,8 +150,9 @@ class RecoveryMetric(BaseModel):
 
     model_config = STRICT
     kind: Literal["recovery"] = "recovery"
-    name: str = Field("recovery", pattern=NAME)
-    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"])
+    name: str = Field("recovery", pattern=NAME, description="metric name in metrics.csv")
+    signals: list[Literal["depth", "yaw"]] = Field(default_factory=lambda: ["depth", "yaw"],
+                                                   description="the DOFs whose recovery is timed")
     tol: dict[str, float] = Field(
         default_factory=lambda: {"depth": 0.01, "yaw": 0.0175}, description="recovered band [m, rad]"
     )
@@ -187,17 +189,19 @@ class Display(BaseModel):
     """How a table shows one metric of one signal: ``value * scale`` in ``unit``."""
 
     model_config = STRICT
-    scale: float = Field(1.0, gt=0)
-    unit: str = ""
+    scale: float = Field(1.0, gt=0, description="our values (means and intervals) are shown multiplied by it, e.g. 100 "
+                         "for m in cm; the paper's values are shown as given")
+    unit: str = Field("", description="the unit shown beside the signal's name, e.g. cm")
 
 
 class TableSpec(BaseModel):
     model_config = STRICT
-    title: str
+    title: str = Field(..., description="the heading of table.md")
     metric: str = Field("std", description="a metric name (or several: rows of the same signals)")
     metrics: list[str] | None = Field(None, min_length=1, description="several metric names as columns (overrides metric)")
     signals: list[str] | None = Field(None, min_length=1, description="default: the signals of the tabulated metrics (z for j_tot)")
-    paper: PaperValues | None = None
+    paper: PaperValues | None = Field(None, description="the published values, shown beside ours in columns labelled "
+                                      "as the paper's")
     relative: tuple[str, str] | None = Field(
         None, description="add a row with the % change of the first variant's means against the second's "
         "(paper values for it under '<first>_vs_<second>')",
@@ -220,13 +224,15 @@ class FigureSpec(BaseModel):
 
     model_config = STRICT
     kind: Literal["timeseries", "tracking"] = "timeseries"
-    file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$")
-    title: str = ""
-    signals: list[str] = Field(default_factory=lambda: ["depth", "yaw"], min_length=1)
+    file: str = Field(..., pattern=r"^[A-Za-z0-9_.-]+\.png$", description="file name under figures/ (e.g. surge.png)")
+    title: str = Field("", description="the figure's title (default: the file name)")
+    signals: list[str] = Field(default_factory=lambda: ["depth", "yaw"], min_length=1,
+                               description="the signals drawn, one panel each (e.g. u, v, sigma_u; depth, yaw)")
     variants: list[str] | None = Field(None, min_length=1, description="default: all variants (of this scenario)")
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario shown (default: the first)")
     error: bool = Field(True, description="add a lower panel per signal with the estimation error")
-    t_range: tuple[float, float] | None = None
+    t_range: tuple[float, float] | None = Field(None, description="[start, end] of the time axis [s] (default: the "
+                                                "whole run)")
     ylim_after: float | None = Field(
         None, ge=0, description="scale the y axes to the data after this time [s] so the initial peaking does not "
         "hide the steady state (default: the first metric's t_start)",
@@ -251,8 +257,9 @@ class SweepParam(BaseModel):
     key: str = Field(..., description="observer field (e.g. k, delta, eps_scale, delta_p1) or a dotted path in the "
                      "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay), or "
                      "world.<per-run key> (e.g. world.gnss_sigma, world.estimate_offset_yaw_deg)")
-    range: tuple[float, float]
-    spacing: Literal["linear", "log"] = "linear"
+    range: tuple[float, float] = Field(..., description="[low, high]: the first and last values swept")
+    spacing: Literal["linear", "log"] = Field("linear", description="the points' spacing over range (log: both ends "
+                                              "positive)")
     fixed: dict[str, Any] = Field(default_factory=dict, description="other settings of the variant for this sweep "
                                   "(keys as for key)")
     probes: list[float] = Field(
@@ -298,7 +305,8 @@ class SweepSpec(BaseModel):
     )
     scenario: str | None = Field(None, description="multi-scenario experiments: the scenario the sweep runs on "
                                  "(default: the variant's first)")
-    params: dict[str, SweepParam] = Field(..., min_length=1)
+    params: dict[str, SweepParam] = Field(..., min_length=1, description="name -> sweepable parameter; the names are "
+                                          "the arguments of marinebench sweep")
     groups: dict[str, dict[str, float]] = Field(
         default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
     )
@@ -364,8 +372,8 @@ class Experiment(BaseModel):
     """One paper table or figure: a scenario, variants, seeds, metrics and outputs."""
 
     model_config = STRICT
-    name: str = Field(..., pattern=NAME)
-    description: str = ""
+    name: str = Field(..., pattern=NAME, description="the experiment's name in metrics.csv, tables and manifests")
+    description: str = Field("", description="free text: what the experiment reproduces")
     scenario: AnyScenario | None = Field(None, description="the world (a file path, or {from: file, overrides})")
     scenarios: dict[str, AnyScenario] | None = Field(
         None, description="several named worlds instead of one (e.g. Tijjani S1, S2-C1, ...); each variant runs on "
@@ -373,13 +381,15 @@ class Experiment(BaseModel):
     )
     seed: int = Field(2024, ge=0, description="root seed; run seeds derive from (seed, seed index)")
     seeds: int = Field(5, ge=1, le=10000, description="Monte-Carlo runs per variant")
-    variants: list[Variant] = Field(..., min_length=1)
-    metrics: list[Metric] = Field(default_factory=lambda: [ErrorMetric()], min_length=1)
-    table: TableSpec | None = None
-    figures: list[FigureSpec] = Field(default_factory=list)
-    engine: EngineOptions = Field(default_factory=EngineOptions)
+    variants: list[Variant] = Field(..., min_length=1, description="the observers or controllers compared, each run "
+                                    "on every seed")
+    metrics: list[Metric] = Field(default_factory=lambda: [ErrorMetric()], min_length=1,
+                                  description="what metrics.csv holds per run (default: std of the estimation errors)")
+    table: TableSpec | None = Field(None, description="table.md: our means beside the paper's values")
+    figures: list[FigureSpec] = Field(default_factory=list, description="figures/*.png, drawn from seed 0")
+    engine: EngineOptions = Field(default_factory=EngineOptions, description="the simulation engine's options")
     assumptions: list[str] = Field(default_factory=list, description="choices where the paper is silent")
-    sweep: SweepSpec | None = None
+    sweep: SweepSpec | None = Field(None, description="the parameters marinebench sweep varies on this experiment")
     claims: list[Claim] = Field(
         default_factory=list, description="the paper's claims about these runs, checked on our means: claims.md"
     )

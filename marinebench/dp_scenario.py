@@ -42,9 +42,9 @@ class Impulse(BaseModel):
 
     model_config = STRICT
     kind: Literal["impulse"] = "impulse"
-    t_start: float = Field(..., ge=0)
-    duration: float = Field(..., gt=0)
-    force: Vec3
+    t_start: float = Field(..., ge=0, description="when it starts [s]")
+    duration: float = Field(..., gt=0, description="how long it lasts [s]")
+    force: Vec3 = Field(..., description="[surge N, sway N, yaw N m], body frame")
 
 
 class SlowLoad(BaseModel):
@@ -52,10 +52,10 @@ class SlowLoad(BaseModel):
 
     model_config = STRICT
     kind: Literal["slow"] = "slow"
-    t_start: float = Field(..., ge=0)
+    t_start: float = Field(..., ge=0, description="when it starts to rise [s]")
     duration: float = Field(..., gt=0, description="total duration including rise and fall [s]")
-    rise: float = Field(..., gt=0)
-    force: Vec3
+    rise: float = Field(..., gt=0, description="the time to rise to force, and to fall back [s]")
+    force: Vec3 = Field(..., description="the held load [surge N, sway N, yaw N m], body frame")
 
     @model_validator(mode="after")
     def _fits(self):
@@ -75,7 +75,7 @@ class Waves(BaseModel):
     hs: float = Field(2.0, ge=0, description="significant wave height [m]")
     tp: float = Field(6.3, gt=0, description="peak period [s]")
     gamma: float | None = Field(3.3, gt=0, description="peak enhancement; null = DNV rule (1.87 here)")
-    n_components: int = Field(40, ge=1, le=1000)
+    n_components: int = Field(40, ge=1, le=1000, description="harmonic components in the superposition")
     w_max_factor: float = Field(3.0, gt=1, description="highest frequency as a multiple of the peak")
     rao: Vec3 = Field((0.26, 0.21, 0.0148), description="|RAO| surge [m/m], sway [m/m], yaw [rad/m] at the peak (130 deg)")
     rao_rolloff: float = Field(
@@ -111,7 +111,8 @@ class DpSensors(BaseModel):
         description="the Gauss-Markov error between its ts samples (with hold='noise'): 'hold' (staircase) or "
         "'linear' (interpolated: the same eq. (48) samples, a continuous error as a physical drift is)",
     )
-    notch: bool = True
+    notch: bool = Field(True, description="pass each measured channel through the notch filter of Torben eq. (49) "
+                        "(notch_w0, notch_wc) before the observers see it")
     notch_w0: float = Field(1.0, gt=0, description="notch centre frequency [rad/s]")
     notch_wc: float = Field(0.5, gt=0, description="notch width [rad/s]")
     continuous_feed: Literal["foh", "hold"] = Field(
@@ -124,8 +125,8 @@ class DpSensors(BaseModel):
 
 class DpInitial(BaseModel):
     model_config = STRICT
-    eta: Vec3 = (0.0, 0.0, 0.0)
-    nu: Vec3 = (0.0, 0.0, 0.0)
+    eta: Vec3 = Field((0.0, 0.0, 0.0), description="eta(0) = [north, east, heading] [m, m, rad]")
+    nu: Vec3 = Field((0.0, 0.0, 0.0), description="nu(0) = [u, v, r] [m/s, m/s, rad/s]")
     bias: Vec3 = Field((0.0, 0.0, 0.0), description="slowly varying bias (current) load, NED [N, N, N m]")
 
 
@@ -138,11 +139,13 @@ class DpScenario(ScenarioBase):
         None, description="the vessel model (M, D, L) the observers are designed and run on; default: the plant's. "
         "A different one (e.g. plant supply_shipx_lf, design supply_dp_linear) simulates model mismatch",
     )
-    initial: DpInitial = Field(default_factory=DpInitial)
+    initial: DpInitial = Field(default_factory=DpInitial, description="the initial pose, velocities and bias")
     bias_rate: Vec3 = Field((0.0, 0.0, 0.0), description="constant drift of the bias load [N/s, N/s, N m/s]")
-    events: list[Event] = Field(default_factory=list)
-    waves: Waves | None = Field(default_factory=Waves)
-    sensors: DpSensors = Field(default_factory=DpSensors)
+    events: list[Event] = Field(default_factory=list, description="loads on the vessel at given times (Fig. 1's "
+                                "impulse)")
+    waves: Waves | None = Field(default_factory=Waves, description="the sea state (null: calm water)")
+    sensors: DpSensors = Field(default_factory=DpSensors, description="GNSS and heading measurements and their "
+                               "filtering")
     dt: float = Field(0.05, gt=0, description="integration and control step [s] (Torben: 0.05 s)")
 
     @model_validator(mode="after")

@@ -46,9 +46,9 @@ class Push(BaseModel):
     """An external load on the plant: ``force = [F_z (N, down), M_psi (N m)]`` during the interval."""
 
     model_config = STRICT
-    t_start: float = Field(..., ge=0)
-    duration: float = Field(..., gt=0)
-    force: tuple[float, float]
+    t_start: float = Field(..., ge=0, description="when it starts [s]")
+    duration: float = Field(..., gt=0, description="how long it lasts [s]")
+    force: tuple[float, float] = Field(..., description="[F_z (N, down), M_psi (N m)]")
 
 
 class Payload(BaseModel):
@@ -56,8 +56,8 @@ class Payload(BaseModel):
     the floor (no load) while the ROV is at or below ``floor_depth``."""
 
     model_config = STRICT
-    weight_fraction: float = Field(0.04, gt=0)
-    floor_depth: float = Field(0.25, gt=0)
+    weight_fraction: float = Field(0.04, gt=0, description="the payload's weight as a fraction of the ROV's")
+    floor_depth: float = Field(0.25, gt=0, description="[m] depth at or below which the payload rests on the floor")
 
 
 class RandomLoad(BaseModel):
@@ -99,20 +99,21 @@ class RovScenario(ScenarioBase):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
     kind: Literal["rov_tracking"] = "rov_tracking"
-    vessel: LeonardLikeParams = Field(default_factory=LeonardLikeParams)
+    vessel: LeonardLikeParams = Field(default_factory=LeonardLikeParams, description="the ROV model (an assumed "
+                                      "Leonard-like stand-in)")
     depth_ref: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], depth [m]) waypoints")
     yaw_ref_deg: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], yaw [deg]) waypoints")
-    sensors: RovSensors = Field(default_factory=RovSensors)
+    sensors: RovSensors = Field(default_factory=RovSensors, description="depth and attitude sampling and noise")
     control_period: float = Field(0.01, gt=0, description="[s] controller period (assumed)")
-    cdo: CdoParams = Field(default_factory=CdoParams)
-    eo: EoParams = Field(default_factory=EoParams)
+    cdo: CdoParams = Field(default_factory=CdoParams, description="the CDO's settings (Tijjani eq. 38, LMI 40)")
+    eo: EoParams = Field(default_factory=EoParams, description="the extended high-gain observer's gains")
     damping_scale: float = Field(1.0, gt=0, description="plant damping multiplier (S2-C2: 1.9)")
     buoyancy_scale: float = Field(1.0, gt=0, description="plant net-buoyancy multiplier (S2-C2: 2.0)")
     estimate_offset: tuple[float, float] = Field(
         (0.0, 0.0), description="initial error of the CDO and EO estimates [m, deg] (Fig. 2 shows convergence from one)"
     )
-    payload: Payload | None = None
-    pushes: list[Push] = Field(default_factory=list)
+    payload: Payload | None = Field(None, description="S2-C1's hanging payload (null: none)")
+    pushes: list[Push] = Field(default_factory=list, description="external loads at given times (S3)")
     random_load: RandomLoad | None = Field(None, description="unmodelled random load (off by default)")
     dt: float = Field(0.002, gt=0, description="integration step [s]")
 

@@ -34,8 +34,10 @@ class Inputs(BaseModel):
     those of ``scenarios/cs2_noiseless.yaml`` (Table III's calibrated world, see the README's "Calibration")."""
 
     model_config = STRICT
-    F_u: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(2.0, 4.0), amplitude=(0.5, 2.0)))
-    tau_r: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.1, 0.1), amplitude=(0.1, 0.3)))
+    F_u: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(2.0, 4.0), amplitude=(0.5, 2.0)),
+                        description="surge thrust [N]")
+    tau_r: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.1, 0.1), amplitude=(0.1, 0.3)),
+                          description="yaw moment [N m]")
 
 
 class Disturbances(BaseModel):
@@ -43,10 +45,13 @@ class Disturbances(BaseModel):
     are those of ``scenarios/cs2_noiseless.yaml`` (Table III's calibrated world)."""
 
     model_config = STRICT
-    F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)))
-    F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)))
+    F_wu: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)),
+                         description="surge force [N]")
+    F_wv: Signal = Field(default_factory=lambda: RandomSinusoid(bias=(-0.3, 0.3), amplitude=(0.4, 1.8), frequency=(0.1, 0.4)),
+                         description="sway force [N]")
     tau_wr: Signal = Field(
-        default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.1, 0.35), frequency=(0.1, 0.4))
+        default_factory=lambda: RandomSinusoid(bias=(-0.05, 0.05), amplitude=(0.1, 0.35), frequency=(0.1, 0.4)),
+        description="yaw moment [N m]",
     )
 
 
@@ -79,7 +84,7 @@ class ScenarioBase(BaseModel):
 
     model_config = STRICT
     name: str = Field(..., pattern=NAME, description="the world's name in metrics.csv and tables")
-    description: str = ""
+    description: str = Field("", description="free text: what the world is")
     horizon: float = Field(..., gt=0, description="simulated time [s]")
     dt: float = Field(..., gt=0, description="integration step [s]")
 
@@ -127,11 +132,12 @@ class Scenario(ScenarioBase):
     """An open-loop ASV world (Bejarano et al. Sec. IV)."""
 
     kind: Literal["open_loop_asv"] = "open_loop_asv"
-    vessel: CyberShip2Params = Field(default_factory=CyberShip2Params)
-    initial: Initial = Field(default_factory=Initial)
-    inputs: Inputs = Field(default_factory=Inputs)
-    disturbances: Disturbances = Field(default_factory=Disturbances)
-    sensors: Sensors = Field(default_factory=Sensors)
+    vessel: CyberShip2Params = Field(default_factory=CyberShip2Params, description="the CyberShip II model's coefficients")
+    initial: Initial = Field(default_factory=Initial, description="the initial pose and velocities")
+    inputs: Inputs = Field(default_factory=Inputs, description="the open-loop control forces, drawn per seed")
+    disturbances: Disturbances = Field(default_factory=Disturbances, description="the environmental forces, drawn per "
+                                       "seed (the lumped disturbance the observers estimate)")
+    sensors: Sensors = Field(default_factory=Sensors, description="the measurement noise")
 
     def per_run_defaults(self) -> dict[str, float]:
         """Per-run world keys: a multiplier of the position noise (e.g. a sweep of the noise level)."""

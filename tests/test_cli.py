@@ -719,6 +719,19 @@ def test_committed_schemas_are_current_and_every_file_names_its_schema(kind):
         assert f.read_text().startswith(f"# yaml-language-server: $schema=../schemas/{kind}.schema.json\n"), f
 
 
+@pytest.mark.parametrize("kind", ["experiment", "scenario"])
+def test_every_key_of_the_files_has_a_description_for_editors(kind):
+    """An editor shows a key's schema description on hover and in completion: every field of every model a file is
+    read into says what it is (``kind``, the discriminator, names its model, which has the docstring)."""
+    from marinebench.schema import file_schema
+
+    schema = file_schema(kind)
+    models = {**schema["$defs"], kind: schema}
+    bare = sorted(f"{name}.{key}" for name, model in models.items() for key, field in model.get("properties", {}).items()
+                  if key != "kind" and "description" not in field)
+    assert not bare
+
+
 def test_list_shows_registered_kinds():
     res = runner.invoke(app, ["list"])
     assert res.exit_code == 0

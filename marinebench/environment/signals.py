@@ -54,7 +54,7 @@ class Constant(BaseModel):
 
     model_config = STRICT
     kind: Literal["constant"] = "constant"
-    value: float = 0.0
+    value: float = Field(0.0, description="the value, in the unit of the input it drives [N, N m]")
 
     def sample(self, rngs: list[np.random.Generator]) -> SinusoidBatch:
         n = len(rngs)

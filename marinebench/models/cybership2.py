@@ -34,25 +34,25 @@ class CyberShip2Params(BaseModel):
     m: float = Field(23.8, gt=0, description="mass [kg]")
     I_z: float = Field(1.76, gt=0, description="yaw moment of inertia [kg m^2]")
     x_g: float = Field(0.046, description="CG position along x_b [m] (MSS initCS2 uses 0.0425)")
-    X_udot: float = -2.0
-    Y_vdot: float = -10.0
-    Y_rdot: float = 0.0
-    N_vdot: float = 0.0
-    N_rdot: float = -1.0
-    X_u: float = -0.72253
+    X_udot: float = Field(-2.0, description="added mass X_udot [kg]")
+    Y_vdot: float = Field(-10.0, description="added mass Y_vdot [kg]")
+    Y_rdot: float = Field(0.0, description="added mass Y_rdot [kg m]")
+    N_vdot: float = Field(0.0, description="added mass N_vdot [kg m]")
+    N_rdot: float = Field(-1.0, description="added inertia N_rdot [kg m^2]")
+    X_u: float = Field(-0.72253, description="linear surge damping X_u [kg/s]")
     X_uu: float = Field(-1.32742, description="X_|u|u")
     X_uuu: float = Field(-5.86643, description="cubic surge damping (Skjetne Table 4; absent from Bejarano Table II)")
     include_xuuu: bool = Field(True, description="include X_uuu u^2 in d11 (Skjetne model)")
-    Y_v: float = -0.88965
+    Y_v: float = Field(-0.88965, description="linear sway damping Y_v [kg/s]")
     Y_vv: float = Field(-36.47287, description="Y_|v|v")
     Y_rv: float = Field(-0.805, description="Y_|r|v")
-    Y_r: float = -7.25
+    Y_r: float = Field(-7.25, description="linear sway damping from yaw rate Y_r [kg m/s]")
     Y_vr: float = Field(-0.845, description="Y_|v|r")
     Y_rr: float = Field(-3.45, description="Y_|r|r")
-    N_v: float = 0.0313
+    N_v: float = Field(0.0313, description="linear yaw damping from sway N_v [kg m/s]")
     N_vv: float = Field(3.95645, description="N_|v|v")
     N_rv: float = Field(0.13, description="N_|r|v")
-    N_r: float = -1.9
+    N_r: float = Field(-1.9, description="linear yaw damping N_r [kg m^2/s]")
     N_vr: float = Field(0.08, description="N_|v|r")
     N_rr: float = Field(-0.75, description="N_|r|r")
 

@@ -72,7 +72,8 @@ class EoParams(BaseModel):
 
     model_config = STRICT
     eps: float = Field(0.041, gt=0, description="[s] 1/theta: the CDO's nominal bandwidth")
-    a: tuple[float, float, float] = Field((3.0, 3.0, 1.0))
+    a: tuple[float, float, float] = Field((3.0, 3.0, 1.0), description="a1, a2, a3: gain [a1/eps, a2/eps^2, a3/eps^3] "
+                                          "(s^3 + a1 s^2 + a2 s + a3 Hurwitz)")
 
     def gain(self) -> np.ndarray:
         """[a1/eps, a2/eps^2, a3/eps^3]."""
