@@ -1111,33 +1111,34 @@ def test_results_are_utf8_whatever_the_locales_encoding(tmp_path):
     assert any(not t.isascii() for t in texts.values())
 
 
+def _long_options() -> dict[str, list[list[str]]]:
+    """command -> its options, each as its long names (aliases such as --gnss, --groups together), --help left out."""
+    import typer.main
+
+    return {name: [names for p in command.params if p.param_type_name == "option"
+                   if (names := [o for o in p.opts + p.secondary_opts if o.startswith("--")]) != ["--help"]]
+            for name, command in typer.main.get_command(app).commands.items()}
+
+
 @pytest.mark.parametrize("page", ["README.md", "docs/commands.md"])
 def test_the_command_synopses_list_every_option_of_every_command(page):
     """The synopsis block of the README and docs/commands.md (``marinebench run CONFIG... [--out DIR] ...``) names
     each command's options, no more and no fewer (an option added to the CLI and not to the synopsis fails here)."""
-    import typer.main
-
-    group = typer.main.get_command(app)
     text = (ROOT / page).read_text(encoding="utf-8")
     block = re.search(r"```\n(marinebench run .*?)```", text, re.DOTALL)[1]
     written: dict[str, set[str]] = {}
     for line in block.splitlines():
         if m := re.match(r"marinebench (\w+) (.*)", line):
             written.setdefault(m[1], set()).update(re.findall(r"--[a-z][a-z-]*", m[2].split("#")[0]))
-    assert set(written) == set(group.commands), page
-    for name, command in group.commands.items():
-        options = [[o for o in p.opts + p.secondary_opts if o.startswith("--")] for p in command.params
-                   if p.param_type_name == "option"]  # an option's aliases: any one of them (--gnss, --groups)
-        wanted = {next((o for o in opts if o in written[name]), opts[0]) for opts in options} - {"--help"}
-        assert written[name] == wanted, (page, name)
+    options = _long_options()
+    assert set(written) == set(options), page
+    for name, aliases in options.items():  # an option may be written by any one of its names
+        assert written[name] == {next((o for o in names if o in written[name]), names[0]) for names in aliases}, (page, name)
 
 
 def test_the_command_reference_describes_every_option_beyond_its_synopsis():
     """docs/commands.md promises every option of every command: each long option is named in its text too."""
-    import typer.main
-
     body = (ROOT / "docs" / "commands.md").read_text(encoding="utf-8").split("```", 2)[2]  # after the synopsis
-    commands = typer.main.get_command(app).commands.values()
-    silent = {o for c in commands for p in c.params if p.param_type_name == "option"
-              for o in p.opts if o.startswith("--") and o != "--help" and not re.search(re.escape(o) + r"\b", body)}
+    silent = {o for aliases in _long_options().values() for names in aliases for o in names
+              if not re.search(re.escape(o) + r"\b", body)}
     assert not silent
