@@ -710,10 +710,11 @@ def report(
 
 @app.command()
 def figures(
-    results: Annotated[list[Path], typer.Argument(metavar="RESULTS", help="result folders written by run --traces")],
+    results: Annotated[list[Path], typer.Argument(metavar="RESULTS", help="result folders written by run --traces, or by sweep")],
 ) -> None:
-    """Draw a result's figures again, without simulating: from its traces.csv.gz (run --traces) and the figures: of its
-    config.resolved.yaml, which may be edited first (other signals, variants or files)."""
+    """Draw a result's figures again, without simulating: a run's from its traces.csv.gz (run --traces) and the figures:
+    of its config.resolved.yaml, which may be edited first (other signals, variants or files); a sweep's from its
+    metrics.csv and the sweep: of its config.resolved.yaml (the metrics, signals and axis labels shown)."""
     from marinebench.results.outputs import redraw_figures
 
     for folder in results:

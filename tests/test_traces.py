@@ -212,3 +212,73 @@ def test_a_damaged_traces_file_is_one_line_naming_it(tiny_config, tmp_path):
         lines = res.output.strip().splitlines()
         assert res.exit_code == 2 and len(lines) == 1, res.output
         assert lines[0].startswith(f"error: {folder / FILE}: ") and expected in lines[0], lines[0]
+
+
+@pytest.fixture(scope="module")
+def small_sweeps(tmp_path_factory):
+    """A one-at-a-time sweep (two groups, a dotted line at the variant's own value) and a grid sweep of Torben's
+    Fig. 3 config, a few short runs each."""
+    out = tmp_path_factory.mktemp("sweeps")
+    config = str(ROOT / "configs" / "torben_fig3.yaml")
+    for args in (["k", "eps", "--n", "3"], ["k", "delta", "--grid", "--n", "2", "--gnss", "dgnss"]):
+        res = CliRunner().invoke(app, ["sweep", *args, "--config", config, "--horizon", "40", "--out", str(out), "--quiet"])
+        assert res.exit_code == 0, res.output
+    return {"sweep.png": out / "torben_fig3_sweep_k_eps_n3_40s", "grid.png": out / "torben_fig3_sweep_grid_k_delta_dgnss_n2_40s"}
+
+
+@pytest.mark.parametrize("file", ["sweep.png", "grid.png"])
+def test_figures_redraws_a_sweeps_figure_from_its_metrics_as_the_sweep_drew_it(small_sweeps, file, tmp_path):
+    """A sweep keeps no traces: its figure is drawn from metrics.csv, which holds every value it shows. Before, the
+    command refused every sweep folder ('no traces.csv.gz ... run the config with --traces', which sweep has not)."""
+    import shutil
+
+    folder = tmp_path / small_sweeps[file].name
+    shutil.copytree(small_sweeps[file], folder)
+    drawn = (folder / "figures" / file).read_bytes()
+    shutil.rmtree(folder / "figures")
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    assert res.exit_code == 0 and res.output.strip() == f"{folder}: 1 figure(s) -> {folder / 'figures'}", res.output
+    assert [p.name for p in (folder / "figures").iterdir()] == [file]
+    assert (folder / "figures" / file).read_bytes() == drawn  # the same values, drawn the same way
+
+
+def test_figures_of_a_sweep_draws_what_its_edited_sweep_section_asks_for(small_sweeps, tmp_path):
+    import shutil
+
+    import yaml
+
+    folder = tmp_path / "swept"
+    shutil.copytree(small_sweeps["sweep.png"], folder)
+    drawn = (folder / "figures" / "sweep.png").read_bytes()
+    resolved = folder / "config.resolved.yaml"
+    doc = yaml.safe_load(resolved.read_text())
+    doc["sweep"]["params"]["k"]["label"] = "the gain k, relabelled"
+    resolved.write_text(yaml.safe_dump(doc, sort_keys=False))
+    assert CliRunner().invoke(app, ["figures", str(folder)]).exit_code == 0
+    relabelled = (folder / "figures" / "sweep.png").read_bytes()
+    assert relabelled != drawn
+    for edit, expected in [({"signals": ["nope"]}, "no signal(s) ['nope'] of metric J_tot in"),
+                           ({"metric": "J_tot_steady", "metrics": None}, None)]:
+        doc["sweep"] |= edit
+        resolved.write_text(yaml.safe_dump(doc, sort_keys=False))
+        res = CliRunner().invoke(app, ["figures", str(folder)])
+        if expected is None:  # another metric of the file
+            assert res.exit_code == 0 and (folder / "figures" / "sweep.png").read_bytes() != relabelled, res.output
+            continue
+        assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+        assert res.output.startswith(f"error: {resolved}: sweep: {expected} {folder / 'metrics.csv'} (its signals there: z)")
+        assert (folder / "figures" / "sweep.png").read_bytes() == relabelled  # nothing half-drawn
+        doc["sweep"].pop("signals")
+
+
+def test_figures_of_a_sweep_without_its_columns_is_one_line(small_sweeps, tmp_path):
+    import shutil
+
+    import pandas as pd
+
+    folder = tmp_path / "grid"
+    shutil.copytree(small_sweeps["grid.png"], folder)
+    pd.read_csv(folder / "metrics.csv").drop(columns="param2_value").to_csv(folder / "metrics.csv", index=False)
+    res = CliRunner().invoke(app, ["figures", str(folder)])
+    assert res.exit_code == 2 and res.output.strip() == (f"error: {folder / 'metrics.csv'}: missing column(s) "
+                                                         "['param2_value']; is this a grid sweep's metrics.csv?"), res.output

@@ -142,21 +142,27 @@ def draw_figures(part, traced: tuple, figdir: Path) -> None:
 
 
 def redraw_figures(folder: Path) -> list[str]:
-    """Draw a result folder's figures again from its ``traces.csv.gz`` and the ``figures:`` of its
-    ``config.resolved.yaml`` (edited, say, to show other signals or variants), without simulating, and swap them
-    in for ``figures/`` atomically; returns the files drawn. Raises MarinebenchError naming the folder."""
+    """Draw a result folder's figures again, without simulating, and swap them in for ``figures/`` atomically;
+    returns the files drawn. A run's are drawn from its ``traces.csv.gz`` and the ``figures:`` of its
+    ``config.resolved.yaml`` (edited, say, to show other signals or variants); a sweep's (its manifest names the
+    ``params`` swept) from its ``metrics.csv`` and the ``sweep:`` of its ``config.resolved.yaml`` (the metrics,
+    signals and axis labels shown). Raises MarinebenchError naming the folder or file."""
     from marinebench.errors import MarinebenchError
     from marinebench.loading import load_experiment
+    from marinebench.results.stored import read_manifest
     from marinebench.results.traces import read_traces, traced_arrays
 
     folder = Path(folder)
-    if not (folder / TRACES_FILE).exists():
+    swept = read_manifest(folder)
+    if "params" not in swept and not (folder / TRACES_FILE).exists():
         raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
     figures = folder / "figures"
     if figures.is_symlink() or (figures.exists() and not figures.is_dir()):  # someone's: it would be swapped out
         raise MarinebenchError(f"{figures}: {'a symbolic link' if figures.is_symlink() else 'a file'}, not the "
                                "result's figures folder: not replaced (move it)")
     exp, _ = load_experiment(folder / "config.resolved.yaml")
+    if "params" in swept:
+        return [_redraw_sweep_figure(folder, exp, bool(swept.get("grid")), figures)]
     frame = read_traces(folder / TRACES_FILE)
     with atomic_directory(figures, results=False) as figdir:
         for name in exp.scenario_names:
@@ -168,6 +174,38 @@ def redraw_figures(folder: Path) -> list[str]:
             _check_traced(folder, part, traced)
             draw_figures(part, traced, figdir)
     return [spec.file for name in exp.scenario_names for spec in exp.part(name).figures]
+
+
+def sweep_figure_file(grid: bool) -> str:
+    """The file in a sweep's ``figures/``: the heat maps of a grid, or the curves."""
+    return "grid.png" if grid else "sweep.png"
+
+
+def _redraw_sweep_figure(folder: Path, exp, grid: bool, figures: Path) -> str:
+    """:func:`redraw_figures` of a sweep's folder: its figure drawn as ``sweep`` drew it (from the values
+    ``metrics.csv`` holds, as there) into ``figures``; returns the file's name."""
+    from marinebench.errors import MarinebenchError
+    from marinebench.results.stored import StoredResultError, read_metrics
+
+    if exp.sweep is None:
+        raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: no sweep: section to draw the sweep's figure by")
+    metrics = read_metrics(folder / "metrics.csv")
+    if missing := [c for c in ["gnss", "param", "param_value", *(["param2", "param2_value"] if grid else [])]
+                   if c not in metrics.columns]:
+        raise StoredResultError(f"{folder / 'metrics.csv'}: missing column(s) {missing}; is this a "
+                                f"{'grid ' if grid else ''}sweep's metrics.csv?")
+    for metric in exp.sweep.shown:
+        held = set(metrics.loc[metrics["metric"] == metric, "signal"])
+        if not held or not set(exp.sweep.signals or held) <= held:
+            what, holds = ((f"signal(s) {sorted(set(exp.sweep.signals) - held)} of metric {metric}",
+                            f"its signals there: {', '.join(sorted(held))}") if held else
+                           (f"metric {metric}", f"it holds metrics {', '.join(sorted(set(metrics['metric'])))}"))
+            raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: sweep: no {what} in {folder / 'metrics.csv'} "
+                                   f"({holds})")
+    file = sweep_figure_file(grid)
+    with diverged_runs_quiet(), atomic_directory(figures, results=False) as figdir:
+        (grid_figure if grid else sweep_figure)(metrics, exp.sweep.shown, exp, figdir / file)
+    return file
 
 
 def _check_traced(folder: Path, part, traced: tuple) -> None:
@@ -216,7 +254,7 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
             own = {p: tuning(base, p) for p in params}
             (tmp / "claims.md").write_text(grid_claims_markdown(exp, mapped, own), encoding="utf-8")
         (tmp / "figures").mkdir()
-        figure(metrics, shown, base, tmp / "figures" / ("grid.png" if grid else "sweep.png"))
+        figure(metrics, shown, base, tmp / "figures" / sweep_figure_file(grid))
         (tmp / "manifest.json").write_text(manifest(
             experiment=exp.name, model=exp.model_label(), inputs_key=inputs_key(exp), config_files={"experiment": str(config)},
             seed=exp.seed, seeds=exp.seeds, runs=len(exp.variants) * exp.seeds, params=params, grid=grid,
