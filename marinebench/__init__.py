@@ -9,6 +9,7 @@ The command line (``marinebench run/sweep/compare ...``) is the main interface. 
     result = mb.run(exp)  # result.metrics: the tidy metrics.csv as a DataFrame; .summary: mean and CI
     result.trace_frame()  # the figures' data: truth and estimate of seed 0 of each variant over time, tidy
     mb.write(result, "results/torben_fig1_2seeds", config="configs/torben_fig1.yaml")  # the run's files
+    mb.sweep("configs/torben_fig3.yaml", "k", n=11).metrics  # a sweep's runs, tagged param, param_value, gnss
 
 Bad input raises :class:`marinebench.errors.ConfigError`, whose message names the file and key.
 """
@@ -16,6 +17,7 @@ Bad input raises :class:`marinebench.errors.ConfigError`, whose message names th
 from __future__ import annotations
 
 from collections.abc import Sequence
+from numbers import Integral
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,7 +26,7 @@ if TYPE_CHECKING:
     from marinebench.experiments.runner import RunResult
 
 __version__ = "0.1.0"
-__all__ = ["load", "run", "write"]
+__all__ = ["load", "run", "sweep", "write"]
 
 
 def load(path: str | Path, sets: Sequence[str] | str | None = (), profile: str | None = None) -> Experiment:
@@ -42,14 +44,53 @@ def run(experiment: Experiment | str | Path, traces: bool = True) -> RunResult:
     """Simulate every variant x seed of an experiment in one batch (``traces``: keep the decimated traces
     the figures need: seed 0 of each variant, ``result.traced`` are their run indices). A path is loaded first,
     as :func:`load` does with no overrides."""
-    from marinebench.config import Experiment
     from marinebench.experiments.runner import run as run_experiment
+
+    return run_experiment(_experiment(experiment, "run"), traces=traces)
+
+
+def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | None = None, *, n: int | None = None,
+          grid: bool = False, groups: Sequence[str] | None = None, horizon: float | None = None) -> RunResult:
+    """Simulate an experiment's sensitivity sweep (its ``sweep:`` section), every point and seed in one batch in
+    this process, as ``marinebench sweep`` does but without writing files. ``params``: names of ``sweep.params``
+    (default: all of them), one at a time, or with ``grid`` exactly two, every combination; ``n``: points per
+    parameter (default: ``sweep.n``, or 11 on a grid); ``groups``: some of ``sweep.groups`` (Torben's ``dgnss``,
+    ``dualband``; default: all); ``horizon``: simulated seconds per run. ``result.metrics`` tags every run with
+    ``param``, ``param_value`` and ``gnss`` (its group), and on a grid ``param2`` and ``param2_value``: the
+    command's ``metrics.csv``, which rounds the values to 7 digits. Other settings go through :func:`load`:
+    ``sets=["seeds=5"]``, ``"sweep.variants=[a, b]"``, or a parameter the section lacks,
+    ``"sweep.params.NAME={key: KEY, range: [LO, HI]}"``. A path is loaded first, as :func:`load` does."""
+    from marinebench.errors import ConfigError
+    from marinebench.experiments.runner import run as run_experiment
+    from marinebench.experiments.sweep import MAX_SWEEP_N, sweep_experiment
+    from marinebench.loading import preflight
+
+    exp = _experiment(experiment, "sweep")
+    file = Path(experiment) if isinstance(experiment, str | Path) else Path(exp.name)  # what errors name
+    if exp.sweep is None:
+        raise ConfigError(file, "sweep", "no 'sweep' section: load the experiment with a parameter to sweep, "
+                          'sets=["sweep.params.NAME={key: KEY, range: [LO, HI]}"]')
+    params = [params] if isinstance(params, str) else list(params or exp.sweep.params)
+    if grid and len(set(params)) != 2:
+        raise ValueError(f"sweep(): grid=True takes two different parameters, not {params}")
+    if n is not None and not (isinstance(n, Integral) and 2 <= n <= MAX_SWEEP_N):  # a numpy integer too
+        raise ValueError(f"sweep(): n is from 2 to {MAX_SWEEP_N} points per parameter, not {n!r}")
+    if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both
+        raise ValueError(f"sweep(): horizon is a positive, finite number of seconds, not {horizon!r}")
+    points = sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
+    preflight(points, file)
+    return run_experiment(points, traces=False)
+
+
+def _experiment(experiment: Experiment | str | Path, caller: str) -> Experiment:
+    """:func:`run`'s and :func:`sweep`'s experiment: as given, or loaded from a path."""
+    from marinebench.config import Experiment
 
     if isinstance(experiment, str | Path):
         experiment = load(experiment)
     if not isinstance(experiment, Experiment):
-        raise TypeError(f"run() takes an Experiment (marinebench.load(path)) or a path, not {type(experiment).__name__}")
-    return run_experiment(experiment, traces=traces)
+        raise TypeError(f"{caller}() takes an Experiment (marinebench.load(path)) or a path, not {type(experiment).__name__}")
+    return experiment
 
 
 def write(result: RunResult, out_dir: str | Path, config: str | Path | None = None) -> Path:

@@ -523,10 +523,6 @@ def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str 
     return metrics, summed, ran, wall, executor
 
 
-#: Points per swept parameter at most (a grid has the square): more is a typo, not a study.
-MAX_SWEEP_N = 1000
-
-
 def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | None, horizon: float | None,
                          grid: bool, require_claims: bool) -> None:
     """sweep: options that contradict each other or are out of range, one line each, before anything loads."""
@@ -542,6 +538,8 @@ def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | 
 
 def _check_points(n: int | None, horizon: float | None) -> None:
     """sweep, bench: ``--n`` points per parameter and ``--horizon`` seconds per run in range."""
+    from marinebench.experiments.sweep import MAX_SWEEP_N
+
     if n is not None and not 2 <= n <= MAX_SWEEP_N:
         fail(f"--n: from 2 to {MAX_SWEEP_N} points per parameter")
     if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both

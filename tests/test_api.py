@@ -2,6 +2,7 @@
 
 import time
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -127,3 +128,49 @@ def test_run_takes_a_path_and_wrong_arguments_are_a_type_error(tmp_path):
     with pytest.raises(TypeError, match="write\\(\\) takes the RunResult .* not NoneType"):
         mb.write(None, tmp_path / "w")
     assert not (tmp_path / "w").exists()
+
+
+def test_sweep_gives_the_runs_the_sweep_command_writes(tmp_path):
+    """``mb.sweep``: the command's sweep in one batch in this process, nothing written; the same runs, tags and
+    numbers as its ``metrics.csv`` (which rounds them to 7 digits)."""
+    import pandas as pd
+
+    config = ROOT / "configs" / "torben_fig3.yaml"
+    res = CliRunner().invoke(app, ["sweep", "k", "eps", "--config", str(config), "--n", "3", "--horizon", "40",
+                                   "--seeds", "2", "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    written = pd.read_csv(tmp_path / "torben_fig3_sweep_k_eps_n3_40s_2seeds" / "metrics.csv")
+    cwd = sorted(tmp_path.iterdir())
+    swept = mb.sweep(mb.load(config, sets=["seeds=2"]), ["k", "eps"], n=3, horizon=40).metrics
+    assert sorted(tmp_path.iterdir()) == cwd  # nothing written
+    assert len(swept) == len(written) and swept["variant"].nunique() == 2 * 3 * 2  # parameters x points x groups
+    keys = ["variant", "seed", "signal", "metric"]
+    both = written.merge(swept, on=keys, suffixes=("_cli", "_api"), validate="one_to_one")
+    for column in ("param", "gnss", "status"):
+        assert (both[f"{column}_cli"] == both[f"{column}_api"]).all(), column
+    assert np.allclose(both["param_value_api"], both["param_value_cli"], rtol=1e-6, atol=0)
+    assert np.allclose(both["value_api"], both["value_cli"], rtol=1e-6, atol=0)
+    grid = mb.sweep(config, ["k", "delta"], grid=True, n=np.int64(2), groups=["dgnss"], horizon=40).metrics
+    assert sorted(set(zip(grid["param_value"], grid["param2_value"]))) == [(0.0, 0.15), (0.0, 10.0), (1.0, 0.15), (1.0, 10.0)]
+    assert set(grid["gnss"]) == {"dgnss"} and set(grid["param2"]) == {"delta"}
+
+
+def test_sweep_refuses_what_the_command_refuses():
+    config = ROOT / "configs" / "torben_fig3.yaml"
+    for kwargs, error, message in [
+        ({"n": 1}, ValueError, "n is from 2 to 1000 points per parameter, not 1"),
+        ({"n": 2.5}, ValueError, "not 2.5"),
+        ({"horizon": float("nan")}, ValueError, "horizon is a positive, finite number of seconds, not nan"),
+        ({"params": ["k"], "grid": True}, ValueError, r"grid=True takes two different parameters, not \['k'\]"),
+        ({"params": "nope"}, ConfigError, r"torben_fig3\.yaml: sweep\.params: unknown parameter\(s\) \['nope'\]"),
+        ({"groups": ["x"]}, ConfigError, r"sweep\.groups: unknown group\(s\) \['x'\]"),
+    ]:
+        with pytest.raises(error, match=message):
+            mb.sweep(config, **kwargs)
+    with pytest.raises(ConfigError, match=r"^bejarano_fig6: sweep: no 'sweep' section: load the experiment with"):
+        mb.sweep(mb.load(ROOT / "configs" / "bejarano_fig6.yaml"))
+    with pytest.raises(TypeError, match="sweep\\(\\) takes an Experiment"):
+        mb.sweep(3)
+    fig6 = mb.load(ROOT / "configs" / "bejarano_fig6.yaml",  # a parameter the config has no section for
+                   sets=["seeds=1", "sweep.params.dp={key: delta_p1, range: [0.5, 3]}"])
+    assert sorted(set(mb.sweep(fig6, n=2, horizon=6).metrics["param_value"])) == [0.5, 3.0]

@@ -38,6 +38,7 @@ from marinebench.results.stored import read_tidy
 from marinebench.results.tables import simulated_on
 
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
+MAX_SWEEP_N = 1000  # points per swept parameter at most (a grid has the square): more is a typo, not a study
 
 
 def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = None, n: int | None = None,
