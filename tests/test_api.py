@@ -1,4 +1,4 @@
-"""The Python API (``marinebench.load/run/write``) gives what the command line gives."""
+"""The Python API (``marinebench.load/run/sweep/write``) gives what the command line gives."""
 
 import time
 
