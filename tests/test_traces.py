@@ -269,6 +269,12 @@ def test_figures_of_a_sweep_draws_what_its_edited_sweep_section_asks_for(small_s
         assert res.output.startswith(f"error: {resolved}: sweep: {expected} {folder / 'metrics.csv'} (its signals there: z)")
         assert (folder / "figures" / "sweep.png").read_bytes() == relabelled  # nothing half-drawn
         doc["sweep"].pop("signals")
+    doc["sweep"]["params"].pop("eps")  # and the claims about it, or the config would not validate
+    doc["sweep"]["claims"] = [claim for claim in doc["sweep"]["claims"] if claim["param"] != "eps"]
+    resolved.write_text(yaml.safe_dump(doc, sort_keys=False))
+    res = CliRunner().invoke(app, ["figures", str(folder)])  # before: a KeyError traceback, exit 1
+    assert res.exit_code == 2 and res.output.strip() == (f"error: {resolved}: sweep.params: no ['eps'], which "
+                                                         f"{folder / 'metrics.csv'} holds (have: k)"), res.output
 
 
 def test_figures_of_a_sweep_without_its_columns_is_one_line(small_sweeps, tmp_path):

@@ -194,6 +194,10 @@ def _redraw_sweep_figure(folder: Path, exp, grid: bool, figures: Path) -> str:
                    if c not in metrics.columns]:
         raise StoredResultError(f"{folder / 'metrics.csv'}: missing column(s) {missing}; is this a "
                                 f"{'grid ' if grid else ''}sweep's metrics.csv?")
+    held = set(metrics["param"]) | (set(metrics["param2"]) if grid else set())
+    if lost := sorted(held - set(exp.sweep.params)):  # the figure marks each parameter's own value by its sweep.params
+        raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: sweep.params: no {lost}, which {folder / 'metrics.csv'} "
+                               f"holds (have: {', '.join(exp.sweep.params)})")
     for metric in exp.sweep.shown:
         held = set(metrics.loc[metrics["metric"] == metric, "signal"])
         if not held or not set(exp.sweep.signals or held) <= held:
