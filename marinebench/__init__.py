@@ -17,7 +17,6 @@ Bad input raises :class:`marinebench.errors.ConfigError`, whose message names th
 from __future__ import annotations
 
 from collections.abc import Sequence
-from numbers import Integral
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -62,7 +61,7 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     ``"sweep.params.NAME={key: KEY, range: [LO, HI]}"``. A path is loaded first, as :func:`load` does."""
     from marinebench.errors import ConfigError
     from marinebench.experiments.runner import run as run_experiment
-    from marinebench.experiments.sweep import MAX_SWEEP_N, sweep_experiment
+    from marinebench.experiments.sweep import points_error, sweep_experiment
     from marinebench.loading import preflight
 
     exp = _experiment(experiment, "sweep")
@@ -73,10 +72,9 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     params = [params] if isinstance(params, str) else list(params or exp.sweep.params)
     if grid and len(set(params)) != 2:
         raise ValueError(f"sweep(): grid=True takes two different parameters, not {params}")
-    if n is not None and not (isinstance(n, Integral) and 2 <= n <= MAX_SWEEP_N):  # a numpy integer too
-        raise ValueError(f"sweep(): n is from 2 to {MAX_SWEEP_N} points per parameter, not {n!r}")
-    if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both
-        raise ValueError(f"sweep(): horizon is a positive, finite number of seconds, not {horizon!r}")
+    if bad := points_error(n, horizon):
+        given = n if bad[0] == "n" else horizon
+        raise ValueError(f"sweep(): {bad[0]} must be {bad[1]}, not {given!r}")
     points = sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
     preflight(points, file)
     return run_experiment(points, traces=False)

@@ -391,7 +391,8 @@ def sweep(
     instead. Where a run is simulated does not change its numbers."""
     import time as _time
 
-    from marinebench.experiments.sweep import GRID_N, check_partial, discard_partial, inline_params, sweep_suffix
+    from marinebench.experiments.chunks import check_partial, discard_partial
+    from marinebench.experiments.sweep import GRID_N, inline_params, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
     from marinebench.results.writer import replaceable
@@ -495,8 +496,8 @@ def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str 
     import time as _time
     from contextlib import nullcontext
 
+    from marinebench.experiments.chunks import chunks_of, finished_chunks, partial_dir, run_chunked
     from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
-    from marinebench.experiments.sweep import chunks_of, finished_chunks, partial_dir, run_chunked
     from marinebench.results.writer import output_folder
 
     jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
@@ -538,12 +539,10 @@ def _check_sweep_options(chunk_size: int, jobs: int, dask: str | None, n: int | 
 
 def _check_points(n: int | None, horizon: float | None) -> None:
     """sweep, bench: ``--n`` points per parameter and ``--horizon`` seconds per run in range."""
-    from marinebench.experiments.sweep import MAX_SWEEP_N
+    from marinebench.experiments.sweep import points_error
 
-    if n is not None and not 2 <= n <= MAX_SWEEP_N:
-        fail(f"--n: from 2 to {MAX_SWEEP_N} points per parameter")
-    if horizon is not None and not (0 < horizon < float("inf")):  # nan fails both
-        fail("--horizon: must be a positive, finite number of seconds")
+    if bad := points_error(n, horizon):
+        fail(f"--{bad[0]}: must be {bad[1]}")
 
 
 @app.command()

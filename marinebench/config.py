@@ -293,6 +293,11 @@ class SweepParam(BaseModel):
         return np.geomspace(lo, hi, n) if self.spacing == "log" else np.linspace(lo, hi, n)
 
 
+#: Points per swept parameter at most, in a config's ``sweep.n`` and in ``sweep --n`` (a grid has the square):
+#: more is a typo, not a study.
+MAX_SWEEP_N = 1000
+
+
 class SweepSpec(BaseModel):
     """``marinebench sweep``: one-at-a-time sweeps of a variant's parameters, per world group."""
 
@@ -316,7 +321,7 @@ class SweepSpec(BaseModel):
         "e.g. a transient and a steady-state error to show a trade-off",
     )
     signals: list[str] | None = Field(None, min_length=1, description="the metric's signals to tabulate and plot (default: all)")
-    n: int = Field(100, ge=2, le=100000, description="points per parameter")
+    n: int = Field(100, ge=2, le=MAX_SWEEP_N, description="points per parameter")
     claims: list[SweepClaim] = Field(default_factory=list, description="the paper's trends, checked on the curves")
 
     @field_validator("params", "groups")

@@ -158,9 +158,9 @@ def test_sweep_gives_the_runs_the_sweep_command_writes(tmp_path):
 def test_sweep_refuses_what_the_command_refuses():
     config = ROOT / "configs" / "torben_fig3.yaml"
     for kwargs, error, message in [
-        ({"n": 1}, ValueError, "n is from 2 to 1000 points per parameter, not 1"),
+        ({"n": 1}, ValueError, "n must be from 2 to 1000 points per parameter, not 1"),
         ({"n": 2.5}, ValueError, "not 2.5"),
-        ({"horizon": float("nan")}, ValueError, "horizon is a positive, finite number of seconds, not nan"),
+        ({"horizon": float("nan")}, ValueError, "horizon must be a positive, finite number of seconds, not nan"),
         ({"params": ["k"], "grid": True}, ValueError, r"grid=True takes two different parameters, not \['k'\]"),
         ({"params": "nope"}, ConfigError, r"torben_fig3\.yaml: sweep\.params: unknown parameter\(s\) \['nope'\]"),
         ({"groups": ["x"]}, ConfigError, r"sweep\.groups: unknown group\(s\) \['x'\]"),

@@ -225,6 +225,8 @@ BAD = {
     "sweep_variant": (lambda d: d.update(sweep={"variant": "nope", "metric": "std",
                                                 "params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}}),
                       "sweep.variant: 'nope' is not a variant (have: liu_eps0.2, proposed_d1.2)"),
+    "sweep_too_many_points": (lambda d: d.update(sweep={"n": 5000, "params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}}),
+                              "sweep.n: Input should be less than or equal to 1000"),  # before: up to 100000, --n's 1000 aside
     "sweep_claim_metric": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
                                {"kind": "trend", "param": "eps", "range": [0.1, 1.0], "metric": "rmse", "text": "t"}]}),
                            "sweep.claims.0: metric 'rmse' is not among the sweep's metrics ['std']"),
@@ -282,14 +284,14 @@ def test_a_file_that_is_not_utf8_is_one_line(tmp_path):
     (["sweep", "k", "--seeds", "100000"], "error: --seeds: Input should be less than or equal to 10000"),
     (["run", "{cfg}", "--set", "seeds=100000"], "error: --set: seeds: Input should be less than or equal to 10000"),
     # out of range for a sweep: a typo that would hang building 1e8 points, or fail deep in the world's arrays
-    (["sweep", "k", "--n", "100000000"], "error: --n: from 2 to 1000 points per parameter"),
+    (["sweep", "k", "--n", "100000000"], "error: --n: must be from 2 to 1000 points per parameter"),
     (["sweep", "k", "--horizon", "nan"], "error: --horizon: must be a positive, finite number of seconds"),
     (["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--horizon", "1e300"],
      "error: --horizon: 1e+300 s: 1e+300 s at dt=0.05 s is 2e+301 steps per run; at most 1e+08"),
     (["compare", "{cfg}", "{cfg}", "--rtol", "nan"], "error: --rtol/--atol: tolerances must be non-negative numbers"),
     (["compare", "{cfg}", "{cfg}", "--atol", "-1"], "error: --rtol/--atol: tolerances must be non-negative numbers"),
     # the edges of the sweep's ranges, and options that contradict each other
-    (["sweep", "k", "--n", "1"], "error: --n: from 2 to 1000 points per parameter"),
+    (["sweep", "k", "--n", "1"], "error: --n: must be from 2 to 1000 points per parameter"),
     (["sweep", "k", "--horizon", "inf"], "error: --horizon: must be a positive, finite number of seconds"),
     (["sweep", "k", "--chunk-size", "0"], "error: --chunk-size: must be at least 1"),
     (["sweep", "k", "--jobs", "2", "--dask", "local"], "error: --jobs: runs the batches in local processes; with --dask"),
@@ -463,9 +465,9 @@ def test_an_output_folder_that_cannot_be_written_fails_before_the_runs(tiny_conf
 def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp_path, monkeypatch):
     """Ctrl-C after the first of three batches: one line naming the kept batch and exit 130; the same command
     then runs only the two others and gives the numbers of an uninterrupted sweep."""
-    from marinebench.experiments import sweep
+    from marinebench.experiments import chunks
 
-    real, calls = sweep.run_chunk, []
+    real, calls = chunks.run_chunk, []
 
     def first_then_ctrl_c(*args, **kwargs):
         calls.append(1)
@@ -475,13 +477,13 @@ def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp
 
     args = ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "3", "--horizon", "2",
             "--chunk-size", "2", "--jobs", "1"]
-    monkeypatch.setattr(sweep, "run_chunk", first_then_ctrl_c)
+    monkeypatch.setattr(chunks, "run_chunk", first_then_ctrl_c)
     res = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
     partial = tmp_path / "a" / ".torben_fig3_sweep_k_n3_2s.partial"
     assert res.exit_code == 130, res.output
     assert res.output.strip().splitlines()[-1] == (
         f"interrupted: 1 of 3 batch(es) finished and kept in {partial}; the same command resumes from them")
-    monkeypatch.setattr(sweep, "run_chunk", real)
+    monkeypatch.setattr(chunks, "run_chunk", real)
     res = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
     assert res.exit_code == 0 and "summed over the 2 batch(es) run" in res.output, res.output
     assert not partial.exists()
@@ -884,8 +886,8 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("args, expected", [
-    (["--n", "-3"], "error: --n: from 2 to 1000 points per parameter"),  # before: numpy's traceback
-    (["--n", "0"], "error: --n: from 2 to 1000 points per parameter"),  # before: the config's n, silently
+    (["--n", "-3"], "error: --n: must be from 2 to 1000 points per parameter"),  # before: numpy's traceback
+    (["--n", "0"], "error: --n: must be from 2 to 1000 points per parameter"),  # before: the config's n, silently
     (["--horizon", "inf"], "error: --horizon: must be a positive, finite number of seconds"),
     (["--params", "k,k", "--n", "2"], "error: --params: k,k: a parameter given more than once"),  # before: "PARAM:"
 ])

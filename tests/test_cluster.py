@@ -8,9 +8,10 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.errors import ClusterError
-from marinebench.experiments import sweep
+from marinebench.experiments import chunks
+from marinebench.experiments.chunks import run_chunked
 from marinebench.experiments.cluster import DaskPool, check_workers, dask_pool
-from marinebench.experiments.sweep import run_chunked, sweep_experiment
+from marinebench.experiments.sweep import sweep_experiment
 from marinebench.loading import load_experiment
 from marinebench.provenance import package_digest
 
@@ -136,7 +137,7 @@ def test_a_chunk_failing_on_a_worker_keeps_the_finished_chunks_and_a_rerun_resum
     base, _ = load_experiment(CFG)
     exp = sweep_experiment(base, ["k"], None, 3, 15.0, CFG)  # 6 runs, 3 chunks of 2
     reference, _, _ = run_chunked(exp, tmp_path / "local", chunk_size=2)
-    real = sweep.run_chunk
+    real = chunks.run_chunk
 
     def failing(e, variants, progress=None):
         if variants[0].name == exp.variants[2].name:
@@ -145,10 +146,10 @@ def test_a_chunk_failing_on_a_worker_keeps_the_finished_chunks_and_a_rerun_resum
 
     target, partial = tmp_path / "dask", tmp_path / ".dask.partial"
     with Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as client:
-        monkeypatch.setattr(sweep, "run_chunk", failing)
+        monkeypatch.setattr(chunks, "run_chunk", failing)
         with pytest.raises(ClusterError, match=r"chunk 1 failed on a worker \(MemoryError: worker ran out of memory\)"):
             run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
         assert not (partial / "chunk-0001.csv").exists()
-        monkeypatch.setattr(sweep, "run_chunk", real)
+        monkeypatch.setattr(chunks, "run_chunk", real)
         resumed, _, ran = run_chunked(exp, target, chunk_size=2, pool=DaskPool(client))
     assert ran >= 1 and _values(resumed) == _values(reference)

@@ -8,10 +8,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from marinebench.experiments.curves import sweep_claims, sweep_table
 from marinebench.experiments.grid import grid_claims, grid_claims_markdown, grid_table
 from marinebench.experiments.runner import summarise
 from marinebench.experiments.settings import tuning
-from marinebench.experiments.sweep import sweep_claims, sweep_table
 from marinebench.loading import load_experiment
 from marinebench.results.claims import evaluate
 from marinebench.results.claims import markdown as claims_markdown

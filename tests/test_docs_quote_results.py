@@ -383,7 +383,7 @@ def _coverage(seeds: int) -> tuple[float, float]:
 def _sweep_claim(sweep: str, text: str) -> list[float]:
     """A committed sweep's claim rechecked on its metrics: each group's statistic and 95 % interval; the claim's
     checks must be narrow (their interval across the bound) for the 5-seed sweep and firm for more seeds."""
-    from marinebench.experiments.sweep import sweep_claims
+    from marinebench.experiments.curves import sweep_claims
     from marinebench.loading import load_experiment
 
     exp, _ = load_experiment(ROOT / "results" / sweep / "config.resolved.yaml")

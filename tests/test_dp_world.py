@@ -406,7 +406,8 @@ def test_sweep_cli_tiny_grid(tmp_path):
 
 def test_interrupted_sweep_resumes_without_rerunning_finished_batches(tmp_path, monkeypatch):
     from marinebench.experiments import runner as runner_module
-    from marinebench.experiments.sweep import run_chunked, sweep_experiment
+    from marinebench.experiments.chunks import run_chunked
+    from marinebench.experiments.sweep import sweep_experiment
 
     cfg = ROOT / "configs" / "torben_fig3.yaml"
     base, _ = load_experiment(cfg)

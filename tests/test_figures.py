@@ -222,7 +222,7 @@ def test_a_long_title_is_wrapped_to_the_figures_width_not_cut_off(tmp_path, draw
 def test_a_sweep_panel_marks_the_variants_own_value_and_labels_a_log_axis_in_plain_numbers(tmp_path, drawn):
     """Fig. 3: a dotted line at Table I's k = 0.7, δ = 2.5 s and ε = [0.5, 0.5, 0.05], which is c_ε = 5 of the
     sweep's fixed ε = [0.1, 0.1, 0.01]; δ's log axis reads 0.2 … 10, not 2×10⁻¹ … 10¹."""
-    from marinebench.experiments.sweep import sweep_figure
+    from marinebench.experiments.curves import sweep_figure
 
     exp = load_experiment(ROOT / "configs" / "torben_fig3.yaml")[0]
     values = {"k": [0.0, 0.5, 1.0], "delta": [0.15, 1.0, 10.0], "eps": [0.1, 1.0, 10.0]}

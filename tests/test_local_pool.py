@@ -15,8 +15,9 @@ from typer.testing import CliRunner
 from marinebench.cli import app
 from marinebench.errors import ClusterError
 from marinebench.experiments import runner as runner_module
+from marinebench.experiments.chunks import chunks_of, run_chunked
 from marinebench.experiments.cluster import available_cores, local_pool
-from marinebench.experiments.sweep import chunks_of, run_chunked, sweep_experiment
+from marinebench.experiments.sweep import sweep_experiment
 from marinebench.loading import load_experiment
 
 from .conftest import TORBEN_FIG3 as CFG

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from marinebench.config import SweepParam, SweepSpec
-from marinebench.experiments.sweep import sweep_claims, sweep_table
+from marinebench.experiments.curves import sweep_claims, sweep_table
 
 from .conftest import md_row as row
 

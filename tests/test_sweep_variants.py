@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from marinebench.cli import app
 from marinebench.config import SweepSpec
-from marinebench.experiments.sweep import crossings, sweep_claims, sweep_table
+from marinebench.experiments.curves import crossings, sweep_claims, sweep_table
 
 from .conftest import ROOT
 from .conftest import md_row as row

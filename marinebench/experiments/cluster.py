@@ -1,6 +1,6 @@
 """Where a sweep's batches run: in this process, side by side in local worker processes, or on Dask.
 
-Chunks of the sweep are the unit of work (``experiments.sweep.run_chunked``); results come back to this
+Chunks of the sweep are the unit of work (``experiments.chunks.run_chunked``); results come back to this
 process, which writes them, so an interrupted sweep resumes the same way wherever its chunks ran, and runs
 are seeded per run, so the numbers do not depend on where or in which batch a run was simulated.
 

@@ -26,8 +26,8 @@ from matplotlib.colors import LogNorm
 
 from marinebench.claims import SweepClaim
 from marinebench.config import Experiment, SweepSpec
+from marinebench.experiments.curves import curve_heading, curves_of, sweep_claims
 from marinebench.experiments.settings import tuning
-from marinebench.experiments.sweep import curve_heading, curves_of, sweep_claims
 from marinebench.plotting.figures import plain_log_labels, save
 from marinebench.results.claims import NARROW_NOTE, Check, format_check, on_seeds, statistic_note
 from marinebench.results.tables import md_row, simulated_on
@@ -179,7 +179,7 @@ _SWAP = {"param": "param2", "param2": "param", "param_value": "param2_value", "p
 
 def grid_claims(metrics: pd.DataFrame, spec: SweepSpec) -> list[GridClaim]:
     """Each claim about one of the grid's parameters, checked as in a one-at-a-time sweep
-    (:func:`~marinebench.experiments.sweep.sweep_claims`) on every slice of the other parameter, in its order."""
+    (:func:`~marinebench.experiments.curves.sweep_claims`) on every slice of the other parameter, in its order."""
     p1, p2 = _axes(metrics)
     out = []
     for claim in spec.claims:

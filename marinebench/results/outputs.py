@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
+from marinebench.experiments.curves import sweep_claims, sweep_figure, sweep_table
 from marinebench.experiments.grid import (
     grid_claims,
     grid_claims_markdown,
@@ -17,7 +18,7 @@ from marinebench.experiments.grid import (
 )
 from marinebench.experiments.runner import RunResult, summarise
 from marinebench.experiments.settings import tuning
-from marinebench.experiments.sweep import as_swept, sweep_claims, sweep_figure, sweep_table
+from marinebench.experiments.sweep import as_swept
 from marinebench.metrics.stats import diverged_runs_quiet
 from marinebench.plotting.figures import timeseries, tracking
 from marinebench.provenance import inputs_key
@@ -153,16 +154,16 @@ def redraw_figures(folder: Path) -> list[str]:
     from marinebench.results.traces import read_traces, traced_arrays
 
     folder = Path(folder)
-    swept = read_manifest(folder)
-    if "params" not in swept and not (folder / TRACES_FILE).exists():
+    stored = read_manifest(folder)
+    if "params" not in stored and not (folder / TRACES_FILE).exists():
         raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
     figures = folder / "figures"
     if figures.is_symlink() or (figures.exists() and not figures.is_dir()):  # someone's: it would be swapped out
         raise MarinebenchError(f"{figures}: {'a symbolic link' if figures.is_symlink() else 'a file'}, not the "
                                "result's figures folder: not replaced (move it)")
     exp, _ = load_experiment(folder / "config.resolved.yaml")
-    if "params" in swept:
-        return [_redraw_sweep_figure(folder, exp, bool(swept.get("grid")), figures)]
+    if "params" in stored:  # a sweep's manifest names the parameters swept
+        return [_redraw_sweep_figure(folder, exp, bool(stored.get("grid")), figures)]
     frame = read_traces(folder / TRACES_FILE)
     with atomic_directory(figures, results=False) as figdir:
         for name in exp.scenario_names:
@@ -194,15 +195,15 @@ def _redraw_sweep_figure(folder: Path, exp, grid: bool, figures: Path) -> str:
                    if c not in metrics.columns]:
         raise StoredResultError(f"{folder / 'metrics.csv'}: missing column(s) {missing}; is this a "
                                 f"{'grid ' if grid else ''}sweep's metrics.csv?")
-    held = set(metrics["param"]) | (set(metrics["param2"]) if grid else set())
-    if lost := sorted(held - set(exp.sweep.params)):  # the figure marks each parameter's own value by its sweep.params
+    swept = set(metrics["param"]) | (set(metrics["param2"]) if grid else set())
+    if lost := sorted(swept - set(exp.sweep.params)):  # the figure marks each parameter's own value by its sweep.params
         raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: sweep.params: no {lost}, which {folder / 'metrics.csv'} "
                                f"holds (have: {', '.join(exp.sweep.params)})")
     for metric in exp.sweep.shown:
-        held = set(metrics.loc[metrics["metric"] == metric, "signal"])
-        if not held or not set(exp.sweep.signals or held) <= held:
-            what, holds = ((f"signal(s) {sorted(set(exp.sweep.signals) - held)} of metric {metric}",
-                            f"its signals there: {', '.join(sorted(held))}") if held else
+        signals = set(metrics.loc[metrics["metric"] == metric, "signal"])
+        if not signals or not set(exp.sweep.signals or signals) <= signals:
+            what, holds = ((f"signal(s) {sorted(set(exp.sweep.signals) - signals)} of metric {metric}",
+                            f"its signals there: {', '.join(sorted(signals))}") if signals else
                            (f"metric {metric}", f"it holds metrics {', '.join(sorted(set(metrics['metric'])))}"))
             raise MarinebenchError(f"{folder / 'config.resolved.yaml'}: sweep: no {what} in {folder / 'metrics.csv'} "
                                    f"({holds})")
