@@ -62,7 +62,7 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     from marinebench.errors import ConfigError
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.experiments.sweep import points_error, sweep_experiment
-    from marinebench.loading import preflight
+    from marinebench.preflight import preflight
 
     exp = _experiment(experiment, "sweep")
     file = Path(experiment) if isinstance(experiment, str | Path) else Path(exp.name)  # what errors name

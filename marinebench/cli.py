@@ -466,7 +466,7 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
     'all'), the experiment whose variants are the sweep's points, its designs solved (preflight), and the parameters
     swept (``params``, or every one of the config's ``sweep.params`` when none is named)."""
     from marinebench.experiments.sweep import sweep_experiment
-    from marinebench.loading import preflight
+    from marinebench.preflight import preflight
 
     with one_line_errors():
         base, _ = _load(config, sets, seed, seeds, sweep_params=False,  # the parameters are checked below

@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from marinebench.experiments.runner import build_groups, plant_of, run, scenario_kinds_for
-from marinebench.loading import load_experiment, load_scenario, preflight
+from marinebench.loading import load_experiment, load_scenario
+from marinebench.preflight import preflight
 from marinebench.registry import kinds
 
 from .conftest import ROOT

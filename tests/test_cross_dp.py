@@ -9,9 +9,10 @@ from marinebench.config import FigureSpec, TableSpec
 from marinebench.dp_scenario import DpScenario, DpWorld
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import make_observer, plant_of, run, wants_lumped
-from marinebench.loading import load_experiment, preflight
+from marinebench.loading import load_experiment
 from marinebench.observers.dp import NpoTuning
 from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
+from marinebench.preflight import preflight
 
 from .conftest import ROOT
 

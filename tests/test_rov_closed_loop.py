@@ -209,7 +209,7 @@ def test_control_energy_starts_when_the_reference_is_reached():
 
 
 def test_closed_loop_needs_controllers_and_estimation_needs_observers(tmp_path):
-    from marinebench.loading import preflight
+    from marinebench.preflight import preflight
 
     exp, path = experiment(tmp_path, [{"name": "x", "controller": {"kind": "srise"}}])
     preflight(exp, path)

@@ -13,7 +13,8 @@ from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
 from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
 from marinebench.experiments.sweep import sweep_experiment
-from marinebench.loading import load_checked, load_experiment, preflight
+from marinebench.loading import load_checked, load_experiment
+from marinebench.preflight import preflight
 
 from .conftest import ROOT
 

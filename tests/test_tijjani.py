@@ -18,7 +18,8 @@ from marinebench.design.cdo import (
 )
 from marinebench.errors import ConfigError, DesignError
 from marinebench.experiments.runner import _recorders, run, steps
-from marinebench.loading import load_experiment, load_scenario, preflight
+from marinebench.loading import load_experiment, load_scenario
+from marinebench.preflight import preflight
 from marinebench.rov_scenario import min_jerk
 from marinebench.sim.recorders import RecoveryTime
 
