@@ -4,9 +4,10 @@
 CDO's LMIs (39)-(40)) and builds a custom class, builds each variant's world for one seed, checks the step
 against the fastest observer pole (``dt * |lambda|max <= stiffness_limit``) and that the world's first step is
 finite, and checks the per-run world settings of the variants and of the sweep's groups, the signals the
-figures and metrics name and (for a sweep) that each parameter names a setting of the swept variant. Every failure is a :class:`~marinebench.errors.ConfigError`
-naming the file and key; ``marinebench validate`` is this without running. Called after
-:func:`marinebench.loading.load_experiment` by :func:`marinebench.loading.load_checked`.
+figures and metrics name and (for a sweep) that each parameter names a setting of the swept variant. Every
+failure is a :class:`~marinebench.errors.ConfigError` naming the file and key; ``marinebench validate`` is this
+without running. Called after :func:`marinebench.loading.load_experiment` by
+:func:`marinebench.loading.load_checked`.
 """
 
 from __future__ import annotations

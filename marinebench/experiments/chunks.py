@@ -11,6 +11,7 @@ and runs are seeded per run, so neither chunking nor resuming changes a number.
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -19,10 +20,12 @@ from marinebench.config import Experiment, Variant
 from marinebench.errors import ClusterError, ConfigError
 from marinebench.results.stored import read_tidy
 
+CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)
+
 
 def run_chunk(exp: Experiment, variants: list[Variant], progress=None) -> tuple[str, float]:
-    """Simulate one chunk of a sweep (in this process or on a Dask worker): its tidy metrics as CSV text
-    (full precision) and its simulation wall time."""
+    """Simulate one chunk of a sweep (in this process, a local worker process or a Dask worker): its tidy
+    metrics as CSV text (full precision) and its simulation wall time."""
     from marinebench.experiments.runner import run
 
     result = run(exp.model_copy(update={"variants": variants}), progress=progress, traces=False)
@@ -43,13 +46,11 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     An interrupted sweep resumes: chunks already on disk for the same inputs (``provenance.inputs_key``: the
     resolved config, marinebench's source files, package versions, custom classes' files) are loaded, not
     rerun (one that cannot be read back runs again). Runs are independent of the batch they are in (per-run
-    seeding), so chunking does not change any number. With a ``pool`` (``experiments.cluster``: local worker processes or Dask) the unfinished chunks
-    are submitted at once and each is saved here as it arrives, so the numbers are the same as in one
-    process and an interrupted parallel sweep resumes the same way.
+    seeding), so chunking does not change any number. With a ``pool`` (``experiments.cluster``: local worker
+    processes or Dask) the unfinished chunks are submitted at once and each is saved here as it arrives, so the
+    numbers are the same as in one process and an interrupted parallel sweep resumes the same way.
     Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
     """
-    import shutil
-
     from marinebench.experiments.cluster import ChunkFailed
     from marinebench.experiments.runner import steps
     from marinebench.provenance import inputs_key
@@ -86,9 +87,6 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
                            "resume") from None
     frames = [kept[c] if c in kept else read_tidy(path) for c, path in enumerate(paths)]  # kept ones: read once
     return pd.concat(frames, ignore_index=True), wall, len(pending)
-
-
-CHUNK_FILE = "chunk-{:04d}.csv"  # a finished chunk's metrics in partial_dir(target)
 
 
 def _kept_key(partial: Path) -> str | None:
@@ -143,6 +141,5 @@ def finished_chunks(target: Path) -> int:
 
 
 def discard_partial(target: Path) -> None:
-    import shutil
-
+    """Remove the kept chunks of the sweep that writes ``target``, once its results are written."""
     shutil.rmtree(partial_dir(target), ignore_errors=True)

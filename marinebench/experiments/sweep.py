@@ -31,7 +31,6 @@ from marinebench.keypaths import did_you_mean, near_misses
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
 
 
-
 def points_error(n: int | None, horizon: float | None) -> tuple[str, str] | None:
     """What is wrong with a sweep's ``n`` (points per parameter; a numpy integer too) or ``horizon`` (simulated
     seconds per run) as given to ``sweep --n/--horizon`` or :func:`marinebench.sweep`: ``(argument, what it must
