@@ -52,31 +52,41 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
           grid: bool = False, groups: Sequence[str] | None = None, horizon: float | None = None) -> RunResult:
     """Simulate an experiment's sensitivity sweep (its ``sweep:`` section), every point and seed in one batch in
     this process, as ``marinebench sweep`` does but without writing files. ``params``: names of ``sweep.params``
-    (default: all of them), one at a time, or with ``grid`` exactly two, every combination; ``n``: points per
+    (default: all of them), or parameters given in place as ``marinebench sweep`` takes them, ``KEY=LO..HI[:log]``
+    (``"delta_p1=0.5..3"``, ``"world.gnss_sigma=0.05..3:log"``; named after the key's last part, and added to the
+    section or making one), one at a time, or with ``grid`` exactly two, every combination; ``n``: points per
     parameter (default: ``sweep.n``, or 11 on a grid); ``groups``: some of ``sweep.groups`` (Torben's ``dgnss``,
     ``dualband``; default: all); ``horizon``: simulated seconds per run. ``result.metrics`` tags every run with
     ``param``, ``param_value`` and ``gnss`` (its group), and on a grid ``param2`` and ``param2_value``: the
     command's ``metrics.csv``, which rounds the values to 7 digits. Other settings go through :func:`load`:
-    ``sets=["seeds=5"]``, ``"sweep.variants=[a, b]"``, or a parameter the section lacks,
-    ``"sweep.params.NAME={key: KEY, range: [LO, HI]}"``. A path is loaded first, as :func:`load` does."""
+    ``sets=["seeds=5"]``, ``"sweep.variants=[a, b]"``, or a parameter with probes or fixed settings,
+    ``"sweep.params.NAME={key: KEY, range: [LO, HI], fixed: {...}}"``. A path is loaded first, as :func:`load` does."""
     from marinebench.errors import ConfigError
+    from marinebench.experiments import sweep as sweeps
     from marinebench.experiments.runner import run as run_experiment
-    from marinebench.experiments.sweep import points_error, sweep_experiment
     from marinebench.preflight import preflight
 
-    exp = _experiment(experiment, "sweep")
-    file = Path(experiment) if isinstance(experiment, str | Path) else Path(exp.name)  # what errors name
-    if exp.sweep is None:
-        raise ConfigError(file, "sweep", "no 'sweep' section: load the experiment with a parameter to sweep, "
-                          'sets=["sweep.params.NAME={key: KEY, range: [LO, HI]}"]')
-    params = [params] if isinstance(params, str) else list(params or exp.sweep.params)
-    if grid and len(set(params)) != 2:
-        raise ValueError(f"sweep(): grid=True takes two different parameters, not {params}")
-    if bad := points_error(n, horizon):
+    if bad := sweeps.points_error(n, horizon):
         given = n if bad[0] == "n" else horizon
         raise ValueError(f"sweep(): {bad[0]} must be {bad[1]}, not {given!r}")
-    points = sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
-    preflight(points, file)
+    params = [params] if isinstance(params, str) else list(params or [])
+    if wrong := [p for p in params if not isinstance(p, str)]:
+        raise TypeError(f"sweep(): each of params is a name of sweep.params or 'KEY=LO..HI[:log]', not {wrong[0]!r}")
+    params, inline = sweeps.inline_params(params, "params")
+    exp = _experiment(experiment, "sweep")
+    file = Path(experiment) if isinstance(experiment, str | Path) else Path(exp.name)  # what errors name
+    exp = sweeps.with_params_in_place(exp, inline, file)
+    if exp.sweep is None:
+        raise ConfigError(file, "sweep", "no 'sweep' section: give a parameter in place, sweep(exp, 'KEY=LO..HI'), "
+                          'or load the experiment with one, sets=["sweep.params.NAME={key: KEY, range: [LO, HI]}"]')
+    params = params or list(exp.sweep.params)
+    if grid and len(set(params)) != 2:
+        raise ValueError(f"sweep(): grid=True takes two different parameters, not {params}")
+    try:
+        points = sweeps.sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
+        preflight(points, file)
+    except ConfigError as exc:  # about a parameter given in place: name its argument
+        raise sweeps.in_place_error(exc, inline) from None
     return run_experiment(points, traces=False)
 
 

@@ -465,7 +465,7 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
     """sweep: the loaded experiment (its variants those of ``--variants``, or every one on the sweep's world for
     'all'), the experiment whose variants are the sweep's points, its designs solved (preflight), and the parameters
     swept (``params``, or every one of the config's ``sweep.params`` when none is named)."""
-    from marinebench.experiments.sweep import sweep_experiment
+    from marinebench.experiments.sweep import in_place_error, sweep_experiment
     from marinebench.preflight import preflight
 
     with one_line_errors():
@@ -478,12 +478,8 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
         try:
             exp = sweep_experiment(base, params, groups, n, horizon, config, overrides, grid)
             preflight(exp, config)
-        except ConfigError as exc:  # about parameters given in place (a grid's pair: 'sweep.params.a,b'): name them
-            about = exc.key.removeprefix("sweep.params.").split(".")[0].split(",") if exc.key.startswith("sweep.params.") else []
-            given = [inline[f"sweep.params.{name}"][0] for name in about if f"sweep.params.{name}" in inline]
-            if not given:
-                raise
-            raise ConfigError(" ".join(given), "", exc.message) from None
+        except ConfigError as exc:  # about parameters given in place: name them
+            raise in_place_error(exc, inline) from None
     return base, exp, params
 
 

@@ -155,6 +155,31 @@ def test_sweep_gives_the_runs_the_sweep_command_writes(tmp_path):
     assert set(grid["gnss"]) == {"dgnss"} and set(grid["param2"]) == {"delta"}
 
 
+def test_sweep_takes_parameters_given_in_place_as_the_command_does(tmp_path):
+    """``mb.sweep(config, "KEY=LO..HI")``: the command's ``sweep KEY=LO..HI`` runs, on a path or a loaded
+    experiment, with or without a ``sweep:`` section; the section's claims outside the new range are left out."""
+    import pandas as pd
+
+    fig6 = ROOT / "configs" / "bejarano_fig6.yaml"  # no sweep section
+    res = CliRunner().invoke(app, ["sweep", "delta_p1=0.5..3:log", "--config", str(fig6), "--n", "3", "--horizon", "6",
+                                   "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    (folder,) = tmp_path.iterdir()
+    written = pd.read_csv(folder / "metrics.csv")
+    for given in (fig6, mb.load(fig6)):
+        swept = mb.sweep(given, "delta_p1=0.5..3:log", n=3, horizon=6).metrics
+        both = written.merge(swept, on=["variant", "seed", "signal", "metric"], suffixes=("_cli", "_api"),
+                             validate="one_to_one")
+        assert len(both) == len(written) == len(swept) and set(both["param_api"]) == {"delta_p1"}
+        assert np.allclose(both["param_value_api"], both["param_value_cli"], rtol=1e-6, atol=0)
+        assert np.allclose(both["value_api"], both["value_cli"], rtol=1e-6, atol=0)
+    assert np.allclose(sorted(set(swept["param_value"])), [0.5, 0.5 * 6 ** 0.5, 3.0])
+    torben = ROOT / "configs" / "torben_fig3.yaml"  # its claim compares k = 0.7 with k = 0, outside 0.5..1
+    mixed = mb.sweep(mb.load(torben), ["k=0.5..1", "eps"], n=2, horizon=5, groups=["dgnss"]).metrics
+    values = {p: sorted(set(v)) for p, v in mixed.groupby("param")["param_value"]}
+    assert values == {"eps": [0.1, 10.0], "k": [0.5, 1.0]}
+
+
 def test_sweep_refuses_what_the_command_refuses():
     config = ROOT / "configs" / "torben_fig3.yaml"
     for kwargs, error, message in [
@@ -164,10 +189,17 @@ def test_sweep_refuses_what_the_command_refuses():
         ({"params": ["k"], "grid": True}, ValueError, r"grid=True takes two different parameters, not \['k'\]"),
         ({"params": "nope"}, ConfigError, r"torben_fig3\.yaml: sweep\.params: unknown parameter\(s\) \['nope'\]"),
         ({"groups": ["x"]}, ConfigError, r"sweep\.groups: unknown group\(s\) \['x'\]"),
+        ({"params": "k=-1..2:log"}, ConfigError, r"^k=-1\.\.2:log: bad range \(-1\.0, 2\.0\) for log spacing"),
+        ({"params": "observer.nope=1..2"}, ConfigError,
+         r"^observer\.nope=1\.\.2: 'observer\.nope' is not a setting of variant 'resetting'"),
+        ({"params": "k=1..2..3"}, ConfigError, r"^params: k=1\.\.2\.\.3: expected a name of sweep\.params or KEY=LO"),
+        ({"params": ["k=0..1", "k=1..2"]}, ConfigError, r"^params: k=1\.\.2: 'k' is swept twice"),
+        ({"params": [3]}, TypeError, r"each of params is a name of sweep\.params or 'KEY=LO\.\.HI\[:log\]', not 3"),
     ]:
         with pytest.raises(error, match=message):
             mb.sweep(config, **kwargs)
-    with pytest.raises(ConfigError, match=r"^bejarano_fig6: sweep: no 'sweep' section: load the experiment with"):
+    with pytest.raises(ConfigError, match=r"^bejarano_fig6: sweep: no 'sweep' section: give a parameter in place, "
+                       r"sweep\(exp, 'KEY=LO\.\.HI'\), or load the experiment with one, sets="):
         mb.sweep(mb.load(ROOT / "configs" / "bejarano_fig6.yaml"))
     with pytest.raises(TypeError, match="sweep\\(\\) takes an Experiment"):
         mb.sweep(3)

@@ -76,13 +76,14 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     return "_sweep" + "".join(f"_{t}" for t in tags)
 
 
-def inline_params(args: Sequence[str]) -> tuple[list[str], dict[str, tuple[str, str]]]:
+def inline_params(args: Sequence[str], what: str = "PARAM") -> tuple[list[str], dict[str, tuple[str, str]]]:
     """The sweep command's PARAM arguments: the name of one of the config's ``sweep.params``, or a parameter given
     in place, ``KEY=LO..HI`` (``:log`` after it for log spacing), with ``KEY`` as :class:`~marinebench.config.SweepParam`
     reads it: ``delta_p1=0.5..3``, ``observer.cdo.lmi_decay=0.1..1``, ``world.gnss_sigma=0.05..3:log``. Such a
     parameter is named after the key's last part and added to (or replaces) ``sweep.params``; a config without a
     ``sweep`` section gets one. Returns the names, and for the parameters given in place the ``--set`` each stands
-    for: ``{"sweep.params.<name>": (argument, value)}``."""
+    for: ``{"sweep.params.<name>": (argument, value)}``. Errors name the arguments ``what`` (the command's
+    ``PARAM``, :func:`marinebench.sweep`'s ``params``)."""
     names, sets = [], {}
     for arg in args:
         if "=" not in arg:
@@ -96,14 +97,45 @@ def inline_params(args: Sequence[str]) -> tuple[list[str], dict[str, tuple[str, 
                 raise ValueError
             value = {"key": key.strip(), "range": [float(lo), float(hi)], "spacing": spacing or "linear"}
         except ValueError:
-            raise ConfigError("PARAM", arg, "expected a name of sweep.params or KEY=LO..HI[:log], e.g. delta_p1=0.5..3 or "
+            raise ConfigError(what, arg, "expected a name of sweep.params or KEY=LO..HI[:log], e.g. delta_p1=0.5..3 or "
                               "world.gnss_sigma=0.05..3:log") from None
         name = value["key"].rsplit(".", 1)[-1]
         if f"sweep.params.{name}" in sets or name in names:
-            raise ConfigError("PARAM", arg, f"'{name}' is swept twice")
+            raise ConfigError(what, arg, f"'{name}' is swept twice")
         names.append(name)
         sets[f"sweep.params.{name}"] = (arg, json.dumps(value))
     return names, sets
+
+
+def with_params_in_place(exp: Experiment, inline: dict[str, tuple[str, str]], file: Path) -> Experiment:
+    """A loaded experiment with the parameters given in place (:func:`inline_params`) in its ``sweep.params``
+    (a ``sweep`` section made for them when it has none), validated again, and without the section's claims about
+    them at values outside their new ranges (:func:`claims_beyond`): what ``marinebench sweep`` does to the
+    document before validating it, for :func:`marinebench.sweep`, whose experiment may be loaded already. An error
+    names the argument (:func:`in_place_error`)."""
+    if not inline:
+        return exp
+    doc = exp.model_dump()
+    spec = doc["sweep"] or {}
+    params = (spec.get("params") or {}) | {key.removeprefix("sweep.params."): json.loads(value)
+                                           for key, (_, value) in inline.items()}
+    doc["sweep"] = spec | {"params": params, "claims": claims_beyond(spec.get("claims"), inline)[0]}
+    try:
+        return Experiment.model_validate(doc)
+    except ValidationError as exc:
+        from marinebench.loading import validation_to_config_error
+
+        raise in_place_error(validation_to_config_error(exc, {"": file}), inline) from None
+
+
+def in_place_error(exc: ConfigError, inline: dict[str, tuple[str, str]]) -> ConfigError:
+    """An error about parameters given in place (its key ``sweep.params.<name>...``; a grid's pair:
+    ``sweep.params.<a>,<b>``) naming the arguments as typed (``k=-1..2:log: bad range ...``); any other as it is."""
+    if not exc.key.startswith("sweep.params."):
+        return exc
+    about = exc.key.removeprefix("sweep.params.").split(".")[0].split(",")
+    given = [inline[f"sweep.params.{name}"][0] for name in about if f"sweep.params.{name}" in inline]
+    return ConfigError(" ".join(given), "", exc.message) if given else exc
 
 
 def claims_beyond(claims: Any, inline: dict[str, tuple[str, str]]) -> tuple[list, list[str]]:
