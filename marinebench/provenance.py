@@ -1,7 +1,7 @@
 """What a result is computed from, as digests: whether a stored result (or a sweep's finished batches) is
 still current, and whether Dask workers run the same code.
 
-:func:`inputs_key` covers the resolved experiment (seeds, every default filled in), the marinebench source,
+:func:`inputs_key` covers the resolved experiment (seeds, every default filled in), the marinebench code,
 the versions of the numerical packages and the files of ``kind: custom`` classes. ``marinebench run
 --resume`` skips an experiment whose ``manifest.json`` has the same key; an interrupted sweep reuses its
 finished batches only under the same key.
@@ -9,22 +9,45 @@ finished batches only under the same key.
 
 from __future__ import annotations
 
+import ast
 import hashlib
+import io
 import json
+import tokenize
 from functools import cache
 from pathlib import Path
 
 
 @cache
 def package_digest() -> str:
-    """SHA-256 over the marinebench package's Python files (relative names and bytes), hashed once per process:
-    the source as this process found it, which is also the code it imported (a run or sweep asks several times)."""
+    """SHA-256 over the marinebench package's Python files (relative names and :func:`code_text`), hashed once per
+    process: the code as this process found it, which is also the code it imported (a run or sweep asks several
+    times). Comments and docstrings are left out, so that a change to them alone leaves stored results current;
+    the manifest's ``git_revision`` names the exact files."""
     root = Path(__file__).resolve().parent
     h = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
-        h.update(path.relative_to(root).as_posix().encode())
-        h.update(path.read_bytes())
+        h.update(path.relative_to(root).as_posix().encode() + b"\0")
+        h.update(code_text(path.read_text(encoding="utf-8")).encode())
     return h.hexdigest()
+
+
+def code_text(source: str) -> str:
+    """A Python file's text without what cannot change what it computes: comments, statements that are a string
+    alone (docstrings) when on lines of their own, blank lines and trailing spaces. The same on every Python
+    version (unlike ``ast.dump``); rewrapping a line of code still changes it."""
+    lines = source.splitlines()
+    for token in tokenize.generate_tokens(io.StringIO(source).readline):
+        if token.type == tokenize.COMMENT:
+            row, col = token.start
+            lines[row - 1] = lines[row - 1][:col]
+    dropped = set()
+    for node in ast.walk(ast.parse(source)):
+        if (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)
+                and not lines[node.lineno - 1][:node.col_offset].strip()
+                and not lines[node.end_lineno - 1][node.end_col_offset:].strip()):
+            dropped.update(range(node.lineno, node.end_lineno + 1))
+    return "\n".join(line.rstrip() for i, line in enumerate(lines, 1) if i not in dropped and line.strip())
 
 
 def custom_sources(exp) -> list[str]:
