@@ -9,10 +9,10 @@ finished batches only under the same key.
 
 from __future__ import annotations
 
-import ast
 import hashlib
 import io
 import json
+import re
 import tokenize
 from functools import cache
 from pathlib import Path
@@ -32,21 +32,27 @@ def package_digest() -> str:
     return h.hexdigest()
 
 
+_LINE_START = {tokenize.NEWLINE, tokenize.NL, tokenize.INDENT, tokenize.DEDENT}  # the token before a line's first
+
+
 def code_text(source: str) -> str:
     """A Python file's text without what cannot change what it computes: comments, statements that are a string
-    alone (docstrings) when on lines of their own, blank lines and trailing spaces. The same on every Python
-    version (unlike ``ast.dump``); rewrapping a line of code still changes it."""
+    alone (docstrings) on lines of their own, blank lines and trailing spaces; one pass of the tokenizer, the same
+    text on every Python version (f-strings, which 3.12 tokenizes apart, always count). Rewrapping a line of code
+    still changes it."""
     lines = source.splitlines()
+    dropped: set[int] = set()
+    before, alone = tokenize.NEWLINE, None  # alone: a string that began a line, while it may be a statement
     for token in tokenize.generate_tokens(io.StringIO(source).readline):
         if token.type == tokenize.COMMENT:
             row, col = token.start
             lines[row - 1] = lines[row - 1][:col]
-    dropped = set()
-    for node in ast.walk(ast.parse(source)):
-        if (isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)
-                and not lines[node.lineno - 1][:node.col_offset].strip()
-                and not lines[node.end_lineno - 1][node.end_col_offset:].strip()):
-            dropped.update(range(node.lineno, node.end_lineno + 1))
+            continue
+        if alone is not None and token.type == tokenize.NEWLINE:  # nothing but the string in its statement
+            dropped.update(range(alone.start[0], alone.end[0] + 1))
+        alone = token if (token.type == tokenize.STRING and before in _LINE_START
+                          and "f" not in re.match(r"[A-Za-z]*", token.string)[0].lower()) else None
+        before = token.type
     return "\n".join(line.rstrip() for i, line in enumerate(lines, 1) if i not in dropped and line.strip())
 
 

@@ -49,6 +49,8 @@ def test_every_change_to_the_code_counts():
         ("not a comment", "not a remark"),  # a '#' in a string is code
         ("    y = 1", "    y = 1\n    z = 'a string assigned'"),
         ("import math", "import math as m"),
+        ("    y = 1", "    y = 1\n    print(\n        'an argument on a line of its own'\n    )"),
+        ("    y = 1", "    y = 1\n    f'{y}'"),  # an f-string statement evaluates its fields
     ]:
         assert old in BEFORE
         assert code_text(BEFORE.replace(old, new)) != code_text(BEFORE), new
