@@ -85,8 +85,10 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     try:
         points = sweeps.sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
         preflight(points, file)
-    except ConfigError as exc:  # about a parameter given in place: name its argument
-        raise sweeps.in_place_error(exc, inline) from None
+    except ConfigError as exc:  # name the argument: a parameter given in place as typed, the command's as this one's
+        exc = sweeps.in_place_error(exc, inline)
+        named = {"--horizon": "horizon", "PARAM": "params"}.get(exc.file)
+        raise (ConfigError(named, exc.key, exc.message) if named else exc) from None
     return run_experiment(points, traces=False)
 
 

@@ -194,6 +194,7 @@ def test_sweep_refuses_what_the_command_refuses():
          r"^observer\.nope=1\.\.2: 'observer\.nope' is not a setting of variant 'resetting'"),
         ({"params": "k=1..2..3"}, ConfigError, r"^params: k=1\.\.2\.\.3: expected a name of sweep\.params or KEY=LO"),
         ({"params": ["k=0..1", "k=1..2"]}, ConfigError, r"^params: k=1\.\.2: 'k' is swept twice"),
+        ({"params": ["k=0..1", "k"]}, ConfigError, r"^params: parameter\(s\) \['k'\] given more than once"),
         ({"params": [3]}, TypeError, r"each of params is a name of sweep\.params or 'KEY=LO\.\.HI\[:log\]', not 3"),
     ]:
         with pytest.raises(error, match=message):
@@ -201,6 +202,8 @@ def test_sweep_refuses_what_the_command_refuses():
     with pytest.raises(ConfigError, match=r"^bejarano_fig6: sweep: no 'sweep' section: give a parameter in place, "
                        r"sweep\(exp, 'KEY=LO\.\.HI'\), or load the experiment with one, sets="):
         mb.sweep(mb.load(ROOT / "configs" / "bejarano_fig6.yaml"))
+    with pytest.raises(ConfigError, match=r"^horizon: 4 s: metrics\.0: metric 'std' window \[5, 4\] s is empty"):
+        mb.sweep(ROOT / "configs" / "cross_asv_table4.yaml", "world.position_noise_scale=0..1", n=2, horizon=4)
     with pytest.raises(TypeError, match="sweep\\(\\) takes an Experiment"):
         mb.sweep(3)
     fig6 = mb.load(ROOT / "configs" / "bejarano_fig6.yaml",  # a parameter the config has no section for
