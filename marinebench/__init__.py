@@ -10,6 +10,7 @@ The command line (``marinebench run/sweep/compare ...``) is the main interface. 
     result.trace_frame()  # the figures' data: truth and estimate of seed 0 of each variant over time, tidy
     mb.write(result, "results/torben_fig1_2seeds", config="configs/torben_fig1.yaml")  # the run's files
     mb.sweep("configs/torben_fig3.yaml", "k", n=11).metrics  # a sweep's runs, tagged param, param_value, gnss
+    mb.compare("results/", "candidate/")  # the CI gate's table: one row per cell, its verdict; worse: a regression
 
 Bad input raises :class:`marinebench.errors.ConfigError`, whose message names the file and key.
 """
@@ -21,11 +22,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from marinebench.config import Experiment
     from marinebench.experiments.runner import RunResult
 
 __version__ = "0.1.0"
-__all__ = ["load", "run", "sweep", "write"]
+__all__ = ["compare", "load", "run", "sweep", "write"]
 
 
 def load(path: str | Path, sets: Sequence[str] | str | None = (), profile: str | None = None) -> Experiment:
@@ -112,3 +115,28 @@ def write(result: RunResult, out_dir: str | Path, config: str | Path | None = No
     if not isinstance(result, RunResult):
         raise TypeError(f"write() takes the RunResult of marinebench.run(), not {type(result).__name__}")
     return write_run(result, Path(out_dir), {"experiment": Path(config)} if config is not None else {})
+
+
+def compare(baseline: str | Path, candidate: str | Path | None = None, *, variants: Sequence[str] | None = None,
+            metrics: Sequence[str] | str | None = None, rtol: float = 0.02, atol: float = 0.0, paired: bool = True,
+            interval: str | None = None) -> pd.DataFrame:
+    """Compare result folders (or trees of them, e.g. ``results/``) cell by cell over seeds, as ``marinebench
+    compare`` does, writing nothing: ``candidate`` against ``baseline``, or with ``variants=(A, B)`` variant B against
+    A inside ``baseline``. ``metrics``: only these (``"claim"`` for the papers' claims); ``rtol``/``atol``: what counts
+    as the same; ``paired=False``: independent samples (``--unpaired``); ``interval``: ``"bootstrap"`` or ``"t"``
+    (``--interval``). Returns one row per cell (experiment, scenario, variant, signal, metric) with the two means, the
+    change and its CI, and ``verdict`` (worse, missing, new, better, same), the most severe first: the gate fails
+    where ``(table.verdict == "worse").any()``. Unusable input raises :class:`marinebench.errors.MarinebenchError`
+    naming the folder or file; a bad argument, ValueError."""
+    from marinebench.results.compare import Tolerance, compare_error, comparison
+
+    pair = None if variants is None or isinstance(variants, str) else tuple(variants)
+    if variants is not None and (pair is None or len(pair) != 2 or not all(isinstance(v, str) for v in pair)):
+        raise ValueError(f"compare(): variants is two variant names (A, B), not {variants!r}")
+    metrics = [metrics] if isinstance(metrics, str) else None if metrics is None else list(metrics)
+    tol = Tolerance(rtol=rtol, atol=atol)
+    names = {"tol": "rtol/atol", "interval": "interval", "unpaired": "paired=False", "candidate": "a candidate",
+             "variants": "variants", "pair": "variants=(A, B)"}
+    if wrong := compare_error(candidate, pair, tol, interval, paired, names):
+        raise ValueError(f"compare(): {wrong}")
+    return comparison(Path(baseline), None if candidate is None else Path(candidate), pair, metrics, tol, paired, interval)

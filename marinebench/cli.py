@@ -633,30 +633,16 @@ def compare(
     """Compare results cell by cell over seeds (paired on seed, bootstrap CIs; or --unpaired); exit 1 if worse.
 
     Exit 0: nothing worse; 1: something worse (or, with --strict, missing); 2: unusable input."""
-    from marinebench.results.compare import OUTPUT_HEADS, Tolerance, compare_dirs, compare_variants, headline
+    from marinebench.results.compare import OUTPUT_HEADS, Tolerance, compare_error, comparison, headline
     from marinebench.results.writer import replaceable_file
 
-    if not (rtol >= 0 and atol >= 0):  # nan fails too
-        fail("--rtol/--atol: tolerances must be non-negative numbers")
-    if interval not in (None, "bootstrap", "t"):
-        fail(f"--interval: 'bootstrap' or 't', not '{interval}'")
-    if interval is not None and unpaired:
-        fail("--interval: chooses the CI of a paired comparison; --unpaired always uses Welch's t interval")
     tol = Tolerance(rtol=rtol, atol=atol)
+    if wrong := compare_error(candidate, variants, tol, interval, paired=not unpaired):
+        fail(wrong)
     with one_line_errors():
         if output is not None:  # before reading anything: a file there that compare did not write stays
             replaceable_file(output, OUTPUT_HEADS, "--output")
-        if variants is not None:
-            if candidate is not None:
-                fail("give either CANDIDATE or --variants A B, not both")
-            if variants[0] == variants[1]:  # every cell would be "same": a typo, not a comparison
-                fail(f"--variants: A and B are both '{variants[0]}'; name two different variants")
-            table = compare_variants(baseline, variants[0], variants[1], metric, tol, paired=not unpaired,
-                                     interval=interval or "t")
-        else:
-            if candidate is None:
-                fail("missing CANDIDATE (or use --variants A B)")
-            table = compare_dirs(baseline, candidate, metric, tol, paired=not unpaired, interval=interval or "bootstrap")
+        table = comparison(baseline, candidate, variants, metric, tol, paired=not unpaired, interval=interval)
     text = _comparison_text(table, fmt, all_cells, paired=not unpaired)
     if output is not None:
         _write_text(output, text, "--output")

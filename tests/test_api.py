@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 
 import marinebench as mb
 from marinebench.cli import app
-from marinebench.errors import ConfigError
+from marinebench.errors import ConfigError, MarinebenchError
 
 from .conftest import ROOT
 
@@ -209,3 +209,41 @@ def test_sweep_refuses_what_the_command_refuses():
     fig6 = mb.load(ROOT / "configs" / "bejarano_fig6.yaml",  # a parameter the config has no section for
                    sets=["seeds=1", "sweep.params.dp={key: delta_p1, range: [0.5, 3]}"])
     assert sorted(set(mb.sweep(fig6, n=2, horizon=6).metrics["param_value"])) == [0.5, 3.0]
+
+
+def test_compare_gives_the_table_the_command_prints():
+    """``mb.compare``: the command's comparison as a DataFrame, nothing written; the same cells, numbers and
+    verdicts as ``compare --format csv``, between two folders or two variants of one."""
+    import io
+
+    import pandas as pd
+
+    table3 = ROOT / "results" / "bejarano_table3"
+    for args, kwargs in [([str(table3), str(table3)], {}),
+                         ([str(table3), "--variants", "liu_eps0.1", "proposed_d0.05", "--metric", "std"],
+                          {"variants": ("liu_eps0.1", "proposed_d0.05"), "metrics": "std"})]:
+        res = CliRunner().invoke(app, ["compare", *args, "--format", "csv"])
+        assert res.exit_code in (0, 1), res.output
+        printed = pd.read_csv(io.StringIO(res.output))
+        table = mb.compare(table3, None if kwargs else table3, **kwargs)
+        assert list(table.columns) == list(printed.columns) and len(table) == len(printed) >= 6
+        assert list(table["verdict"]) == list(printed["verdict"]) and list(table["signal"]) == list(printed["signal"])
+        assert np.allclose(table["candidate"], printed["candidate"], rtol=1e-12, equal_nan=True)
+    assert set(table["verdict"]) == {"worse"} and set(table["variant"]) == {"proposed_d0.05 vs liu_eps0.1"}
+
+
+def test_compare_refuses_what_the_command_refuses():
+    results = ROOT / "results"
+    for kwargs, error, message in [
+        ({"candidate": results, "rtol": -1}, ValueError, r"^compare\(\): rtol/atol: tolerances must be non-negative"),
+        ({"candidate": results, "interval": "x"}, ValueError, r"interval: 'bootstrap' or 't', not 'x'"),
+        ({"candidate": results, "paired": False, "interval": "t"}, ValueError, r"paired=False always uses Welch's t"),
+        ({}, ValueError, r"^compare\(\): missing a candidate \(or use variants=\(A, B\)\)$"),
+        ({"candidate": results, "variants": ("a", "b")}, ValueError, r"give either a candidate or variants=\(A, B\)"),
+        ({"variants": ("a", "a")}, ValueError, r"variants: A and B are both 'a'"),
+        ({"variants": "ab"}, ValueError, r"variants is two variant names \(A, B\), not 'ab'"),
+        ({"variants": ("liu_eps0.1", "zz")}, MarinebenchError, r"no variant 'zz' \(have: "),
+        ({"candidate": ROOT / "reference" / "quick"}, MarinebenchError, r"mismatched configs for experiment"),
+    ]:
+        with pytest.raises(error, match=message):
+            mb.compare(results, **kwargs)

@@ -1,5 +1,6 @@
 """compare: planted regressions caught, noise within tolerance not, missing cells, exit codes, CIs."""
 
+import io
 import json
 import re
 import shutil
@@ -293,6 +294,37 @@ def test_variant_comparison_inside_one_run(tmp_path, base_values):
     assert (u.ci_low, u.ci_high) == pytest.approx((diff.mean() - half, diff.mean() + half))
     assert u.rel_ci_low == pytest.approx(u.ci_low / base_values[("a", "u")].mean())
     assert "paired Student t interval" in res.output
+
+
+def test_variants_over_a_tree_of_runs_and_sweeps(tmp_path, base_values):
+    """--variants over a tree (results/) that holds runs, a sweep of several variants side by side and a
+    one-variant sweep: the runs' cells and the sweep's points are compared (before: the sweep's column hid every
+    run, '0 worse, 0 better, 0 same', exit 0); a refusal names the variants, not the points; two variants never
+    run beside each other are refused, as two directories with no cell in common are."""
+    tree = tmp_path / "tree"
+    write_result(tree, "exp", base_values)
+    for name, variants in (("sw", ("a", "b")), ("one", ("k_000_default", "k_001_default"))):
+        d = write_result(tree, name, {(v, "u"): base_values[("a", "u")] for v in variants})
+        m = pd.read_csv(d / "metrics.csv")
+        m = m.assign(param="k", param_value=[float(v.endswith("1_default")) for v in m["variant"]], gnss="default")
+        if name == "sw":  # each variant at two points
+            m = pd.concat([m.assign(param_value=0.0), m.assign(param_value=1.0)])
+            points = [f"{v}_k_{x:03.0f}" for v, x in zip(m["variant"], m["param_value"])]
+            m = m.assign(sweep_variant=m["variant"], variant=points)
+        m.to_csv(d / "metrics.csv", index=False)
+    write_result(tree, "solo", {("c", "u"): base_values[("a", "u")]})
+    write_result(tree, "lone", {("d", "u"): base_values[("a", "u")]})
+    res = runner.invoke(app, ["compare", str(tree), "--variants", "a", "b", "--format", "csv"])
+    assert res.exit_code in (0, 1), res.output
+    cells = pd.read_csv(io.StringIO(res.output))
+    assert sorted(zip(cells["experiment"], cells["variant"], cells["signal"])) == [
+        ("exp", "b vs a", "u"), ("exp", "b vs a", "v"), ("sw", "k=0: b vs a", "u"), ("sw", "k=1: b vs a", "u")]
+    res = runner.invoke(app, ["compare", str(tree), "--variants", "c", "d"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {tree}: variants 'c' and 'd' have no cell in common (experiment, scenario, signal, metric; a sweep's "
+        "point): neither was run beside the other")
+    res = runner.invoke(app, ["compare", str(tree), "--variants", "a", "zz"])
+    assert res.exit_code == 2 and res.output.strip().endswith("no variant 'zz' (have: a, b, c, d)"), res.output
 
 
 def test_interval_chooses_the_ci_of_a_paired_comparison(tmp_path, base_values):

@@ -363,6 +363,42 @@ def _config_name(manifest: dict) -> str | None:
     return Path(path).name if isinstance(path, str) else None
 
 
+CLI_NAMES = {"tol": "--rtol/--atol", "interval": "--interval", "unpaired": "--unpaired", "candidate": "CANDIDATE",
+             "variants": "--variants", "pair": "--variants A B"}  # the arguments of compare_error, as the command spells them
+
+
+def compare_error(candidate: Path | None, variants: tuple[str, str] | None, tol: Tolerance, interval: str | None,
+                  paired: bool, names: dict[str, str] = CLI_NAMES) -> str | None:
+    """What is wrong with a comparison as asked of ``marinebench compare`` or :func:`marinebench.compare`, in the
+    words of ``names`` (the arguments as the caller spells them, :data:`CLI_NAMES`), or None: a tolerance below
+    zero (or nan), an interval other than the two, an interval with an unpaired comparison, neither or both of a
+    candidate and a pair of variants, or a pair whose two variants are the same (every cell would be 'same')."""
+    if not (tol.rtol >= 0 and tol.atol >= 0):  # nan fails too
+        return f"{names['tol']}: tolerances must be non-negative numbers"
+    if interval not in (None, "bootstrap", "t"):
+        return f"{names['interval']}: 'bootstrap' or 't', not '{interval}'"
+    if interval is not None and not paired:
+        return (f"{names['interval']}: chooses the CI of a paired comparison; {names['unpaired']} always uses "
+                "Welch's t interval")
+    if variants is None:
+        return None if candidate is not None else f"missing {names['candidate']} (or use {names['pair']})"
+    if candidate is not None:
+        return f"give either {names['candidate']} or {names['pair']}, not both"
+    if variants[0] == variants[1]:
+        return f"{names['variants']}: A and B are both '{variants[0]}'; name two different variants"
+    return None
+
+
+def comparison(baseline: Path, candidate: Path | None, variants: tuple[str, str] | None, metrics: list[str] | None,
+               tol: Tolerance, paired: bool = True, interval: Interval | None = None) -> pd.DataFrame:
+    """The comparison :func:`compare_error` found nothing wrong with: ``candidate`` against ``baseline``
+    (:func:`compare_dirs`, by default with the bootstrap interval), or the second of ``variants`` against the first
+    inside ``baseline`` (:func:`compare_variants`, by default with the t interval)."""
+    if variants is not None:
+        return compare_variants(baseline, *variants, metrics, tol, paired=paired, interval=interval or "t")
+    return compare_dirs(baseline, candidate, metrics, tol, paired=paired, interval=interval or "bootstrap")
+
+
 def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = None, tol: Tolerance = Tolerance(),
                  paired: bool = True, interval: Interval = "bootstrap") -> pd.DataFrame:
     """Every cell and every claim (from the manifests; with ``metrics``, only if ``claim`` is among them),
@@ -402,21 +438,35 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
                      paired: bool = True, interval: Interval = "t") -> pd.DataFrame:
     """Variant ``b`` (candidate) against variant ``a`` (baseline) inside the same run(s), paired on seed, by default
     with the paired t interval (:func:`paired_t_ci`: their differences are noise); unpaired: as independent samples.
-    In a sweep of several variants side by side (``sweep --variants``), point by point: the cells are the sweep's points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``)."""
+    In a sweep of several variants side by side (``sweep --variants``), point by point: the cells are the sweep's
+    points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``); a tree (``results/``)
+    may hold both kinds of folder. Two variants that share no cell are refused, as :func:`require_pairs` does."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics)
-    column = "sweep_variant" if "sweep_variant" in df.columns else "variant"
+    swept = df["sweep_variant"].notna() if "sweep_variant" in df.columns else pd.Series(False, index=df.index)
+    names = df["sweep_variant"].where(swept, df["variant"]) if swept.any() else df["variant"]  # a tree may hold both
     for v in (a, b):
-        if v not in set(df[column]):
-            raise CompareInputError(f"{results}: no variant '{v}' (have: {', '.join(sorted(set(df[column])))})")
-    keys = ["experiment", "scenario", "signal", "metric"]
-    if column == "sweep_variant":
-        df = df.assign(point=_points(df))
-        keys.insert(2, "point")
-    out = compare_frames(df[df[column] == a], df[df[column] == b], tol, keys, paired, interval)
-    out.insert(2, "variant", [f"{p}: {b} vs {a}" for p in out.pop("point")] if "point" in out else f"{b} vs {a}")
+        if v not in set(names):
+            raise CompareInputError(f"{results}: no variant '{v}' (have: {_variant_names(df, names, swept)})")
+    df = df.assign(point="")
+    if swept.any():
+        df.loc[swept, "point"] = _points(df[swept])
+    keys = ["experiment", "scenario", "point", "signal", "metric"]
+    out = compare_frames(df[names == a], df[names == b], tol, keys, paired, interval)
+    out.insert(2, "variant", [f"{p}: {b} vs {a}" if p else f"{b} vs {a}" for p in out.pop("point")])
+    if not out["verdict"].isin(("worse", "better", "same")).any():  # e.g. each in other experiments of a tree
+        raise CompareInputError(f"{results}: variants '{a}' and '{b}' have no cell in common (experiment, scenario, "
+                                "signal, metric; a sweep's point): neither was run beside the other")
     if paired and interval == "t":
         out.attrs["interval_note"] = T_NOTE
     return out
+
+
+def _variant_names(df: pd.DataFrame, names: pd.Series, swept: pd.Series, most: int = 20) -> str:
+    """The variants to name in a refusal: those of runs and of sweeps of several variants, not the points of a
+    one-variant sweep (``k_042_dgnss``: hundreds in a tree) unless there is nothing else; at most ``most``."""
+    of_runs = ~df["param"].notna() | swept if "param" in df.columns else pd.Series(True, index=df.index)
+    have = sorted(set(names[of_runs])) or sorted(set(names))
+    return ", ".join(have[:most]) + (f", … ({len(have)} in all)" if len(have) > most else "")
 
 
 def _points(df: pd.DataFrame) -> list[str]:
