@@ -263,11 +263,15 @@ def test_unusable_inputs_exit_2(tmp_path, base_values):
 def test_a_metric_no_cell_has_is_refused(tmp_path, base_values):
     """A mistyped --metric would leave nothing to compare, and a gate that compares nothing passes."""
     write_result(tmp_path / "base", "exp", base_values)
-    for args in ([str(tmp_path / "base"), str(tmp_path / "base")], [str(tmp_path / "base" / "exp"), "--variants", "a", "b"]):
+    for args, have in (([str(tmp_path / "base"), str(tmp_path / "base")], "claim, std"),
+                       ([str(tmp_path / "base" / "exp"), "--variants", "a", "b"], "std")):
         res = runner.invoke(app, ["compare", *args, "--metric", "std", "--metric", "sdt"])
-        assert res.exit_code == 2 and res.output.strip() == "error: --metric: no cell has metric 'sdt' (have: claim, std)"
+        assert res.exit_code == 2 and res.output.strip() == f"error: --metric: no cell has metric 'sdt' (have: {have})"
     res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "base"), "--metric", "claim"])
     assert res.exit_code == 2 and "no cell in common" in res.output, res.output  # no manifests, so no claims either
+    res = runner.invoke(app, ["compare", str(tmp_path / "base" / "exp"), "--variants", "a", "b", "--metric", "claim"])
+    assert res.exit_code == 2 and res.output.strip() == "error: --metric: no cell has metric 'claim' (have: std)"  # an
+    # experiment's claims are not a variant's (before: "no variant 'a' (have: )")
 
 
 def test_tree_with_duplicate_experiment_is_unusable(tmp_path, base_values):

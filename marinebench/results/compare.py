@@ -90,16 +90,17 @@ def load_metrics(dirs: dict[str, Path]) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-def select_metrics(frames: list[pd.DataFrame], metrics: list[str] | None) -> list[pd.DataFrame]:
+def select_metrics(frames: list[pd.DataFrame], metrics: list[str] | None, claims: bool = True) -> list[pd.DataFrame]:
     """The rows of ``metrics`` (all without), refusing a name no frame has: a mistyped ``--metric`` would
-    otherwise leave nothing to compare, and a gate that compares nothing passes."""
+    otherwise leave nothing to compare, and a gate that compares nothing passes. ``claims``: ``claim`` names the
+    papers' claims, compared besides (not between variants: a claim is the experiment's)."""
     if not metrics:
         return frames
-    have = set().union(*(set(f["metric"]) for f in frames))
-    unknown = [m for m in metrics if m not in have | {"claim"}]
+    have = set().union(*(set(f["metric"]) for f in frames)) | ({"claim"} if claims else set())
+    unknown = [m for m in metrics if m not in have]
     if unknown:
         raise CompareInputError(f"--metric: no cell has metric {', '.join(map(repr, unknown))} "
-                                f"(have: {', '.join(sorted(have | {'claim'}))})")
+                                f"(have: {', '.join(sorted(have))})")
     return [f[f["metric"].isin(metrics)] for f in frames]
 
 
@@ -441,7 +442,7 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
     In a sweep of several variants side by side (``sweep --variants``), point by point: the cells are the sweep's
     points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``); a tree (``results/``)
     may hold both kinds of folder. Two variants that share no cell are refused, as :func:`require_pairs` does."""
-    [df] = select_metrics([load_metrics(find_results(results))], metrics)
+    [df] = select_metrics([load_metrics(find_results(results))], metrics, claims=False)
     swept = df["sweep_variant"].notna() if "sweep_variant" in df.columns else pd.Series(False, index=df.index)
     names = df["sweep_variant"].where(swept, df["variant"]) if swept.any() else df["variant"]  # a tree may hold both
     for v in (a, b):
