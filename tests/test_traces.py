@@ -135,6 +135,14 @@ def test_figures_without_traces_or_with_a_variant_the_config_lost_is_one_line(ti
     assert {p.name: p.read_bytes() for p in (folder / "figures").iterdir()} == before  # nothing half-drawn
     res = CliRunner().invoke(app, ["figures", str(tmp_path / "nope")])
     assert res.exit_code == 2 and res.output.strip() == f"error: {tmp_path / 'nope'}: no such directory"
+    # a tree of results (before: "no traces.csv.gz to draw from", as if it were one): what in it can be drawn
+    res = CliRunner().invoke(app, ["figures", str(plain)])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: {plain}: not a result folder but a tree of them: name the ones to redraw (none of its 1 can be: only "
+        "sweeps and runs with --traces)")
+    res = CliRunner().invoke(app, ["figures", str(tmp_path / "traced")])
+    assert res.exit_code == 2
+    assert res.output.strip().endswith(f"(1 of its 1 can be, sweeps and runs with --traces, e.g. {folder})")
 
 
 @pytest.mark.parametrize("kind", ["file", "link"])

@@ -156,6 +156,9 @@ def redraw_figures(folder: Path) -> list[str]:
     folder = Path(folder)
     stored = read_manifest(folder)
     if "params" not in stored and not (folder / TRACES_FILE).exists():
+        if not (folder / "config.resolved.yaml").exists() and (tree := _redrawable_inside(folder)) is not None:
+            raise MarinebenchError(f"{folder}: not a result folder but a tree of them: name the ones to redraw "
+                                   f"({tree})")
         raise MarinebenchError(f"{folder}: no {TRACES_FILE} to draw from (run the config with --traces)")
     figures = folder / "figures"
     if figures.is_symlink() or (figures.exists() and not figures.is_dir()):  # someone's: it would be swapped out
@@ -175,6 +178,19 @@ def redraw_figures(folder: Path) -> list[str]:
             _check_traced(folder, part, traced)
             draw_figures(part, traced, figdir)
     return [spec.file for name in exp.scenario_names for spec in exp.part(name).figures]
+
+
+def _redrawable_inside(tree: Path) -> str | None:
+    """What :func:`redraw_figures` can draw among the result folders right inside ``tree`` (a sweep's, a run's with
+    traces), said for a refusal; None when it holds none."""
+    from marinebench.results.stored import read_manifest
+
+    inside = sorted(p.parent for p in tree.glob("*/manifest.json"))
+    if not inside:
+        return None
+    can = [d for d in inside if (d / TRACES_FILE).exists() or "params" in read_manifest(d)]
+    return (f"{len(can)} of its {len(inside)} can be, sweeps and runs with --traces, e.g. {can[0]}" if can else
+            f"none of its {len(inside)} can be: only sweeps and runs with --traces")
 
 
 def sweep_figure_file(grid: bool) -> str:
