@@ -12,7 +12,8 @@ The command line (``marinebench run/sweep/compare ...``) is the main interface. 
     mb.sweep("configs/torben_fig3.yaml", "k", n=11).metrics  # a sweep's runs, tagged param, param_value, gnss
     mb.compare("results/", "candidate/")  # the CI gate's table: one row per cell, its verdict; worse: a regression
 
-Bad input raises :class:`marinebench.errors.ConfigError`, whose message names the file and key.
+Bad input raises a :class:`marinebench.errors.MarinebenchError` whose message names the file (a config's, a
+:class:`~marinebench.errors.ConfigError`, names the key too); a bad argument, ValueError or TypeError.
 """
 
 from __future__ import annotations
@@ -139,4 +140,5 @@ def compare(baseline: str | Path, candidate: str | Path | None = None, *, varian
              "variants": "variants", "pair": "variants=(A, B)"}
     if wrong := compare_error(candidate, pair, tol, interval, paired, names):
         raise ValueError(f"compare(): {wrong}")
-    return comparison(Path(baseline), None if candidate is None else Path(candidate), pair, metrics, tol, paired, interval)
+    candidate = None if candidate is None else Path(candidate)
+    return comparison(Path(baseline), candidate, pair, metrics, tol, paired, interval)

@@ -318,6 +318,10 @@ def test_variants_over_a_tree_of_runs_and_sweeps(tmp_path, base_values):
         m.to_csv(d / "metrics.csv", index=False)
     write_result(tree, "solo", {("c", "u"): base_values[("a", "u")]})
     write_result(tree, "lone", {("d", "u"): base_values[("a", "u")]})
+    grid = write_result(tree, "grid", {("k_000_eps_000_default", "u"): base_values[("a", "u")]})  # gives the tree
+    m = pd.read_csv(grid / "metrics.csv")  # param2 columns, blank in the other sweeps' rows
+    m.assign(param="k", param_value=0.0, param2="eps", param2_value=0.0, gnss="default").to_csv(grid / "metrics.csv",
+                                                                                              index=False)
     res = runner.invoke(app, ["compare", str(tree), "--variants", "a", "b", "--format", "csv"])
     assert res.exit_code in (0, 1), res.output
     cells = pd.read_csv(io.StringIO(res.output))

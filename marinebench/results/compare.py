@@ -364,8 +364,9 @@ def _config_name(manifest: dict) -> str | None:
     return Path(path).name if isinstance(path, str) else None
 
 
+# the arguments of compare_error, as the command spells them
 CLI_NAMES = {"tol": "--rtol/--atol", "interval": "--interval", "unpaired": "--unpaired", "candidate": "CANDIDATE",
-             "variants": "--variants", "pair": "--variants A B"}  # the arguments of compare_error, as the command spells them
+             "variants": "--variants", "pair": "--variants A B"}
 
 
 def compare_error(candidate: Path | None, variants: tuple[str, str] | None, tol: Tolerance, interval: str | None,
@@ -465,17 +466,18 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
 def _variant_names(df: pd.DataFrame, names: pd.Series, swept: pd.Series, most: int = 20) -> str:
     """The variants to name in a refusal: those of runs and of sweeps of several variants, not the points of a
     one-variant sweep (``k_042_dgnss``: hundreds in a tree) unless there is nothing else; at most ``most``."""
-    of_runs = ~df["param"].notna() | swept if "param" in df.columns else pd.Series(True, index=df.index)
+    of_runs = df["param"].isna() | swept if "param" in df.columns else pd.Series(True, index=df.index)
     have = sorted(set(names[of_runs])) or sorted(set(names))
     return ", ".join(have[:most]) + (f", … ({len(have)} in all)" if len(have) > most else "")
 
 
 def _points(df: pd.DataFrame) -> list[str]:
     """Each sweep run's point: its parameter value(s), and its world group unless that is the only ``default``
-    (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``)."""
+    (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``; in a tree, a one-at-a-time sweep's rows have no ``param2``)."""
     labels = df["param"] + "=" + df["param_value"].map("{:g}".format)
     if "param2" in df.columns:
-        labels += ", " + df["param2"] + "=" + df["param2_value"].map("{:g}".format)
+        second = ", " + df["param2"].astype(str) + "=" + df["param2_value"].map("{:g}".format)
+        labels += np.where(df["param2"].notna(), second, "")
     return list(labels + np.where(df["gnss"] == "default", "", ", " + df["gnss"]))
 
 
