@@ -303,11 +303,12 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
     return out.sort_values(["_sev", "_mag"] + keys).drop(columns=["_sev", "_mag"]).reset_index(drop=True)
 
 
-def require_pairs(table: pd.DataFrame) -> None:
-    """Refuse a comparison in which no cell and no claim is in both: a wrong directory, not a passing gate."""
+def require_pairs(table: pd.DataFrame, message: str = "baseline and candidate have no cell in common (experiment, "
+                  "scenario, variant, signal, metric) and no claim: are these the right directories?") -> None:
+    """Refuse a comparison in which no cell and no claim is in both (``message``): a wrong directory or two variants
+    never run side by side, not a passing gate."""
     if not table["verdict"].isin(("worse", "better", "same")).any():
-        raise MarinebenchError("baseline and candidate have no cell in common (experiment, scenario, variant, "
-                               "signal, metric) and no claim: are these the right directories?")
+        raise CompareInputError(message)
 
 
 def load_claims(manifests: dict[str, dict]) -> dict[tuple[str, str], tuple[bool, bool]]:
@@ -455,9 +456,8 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
     keys = ["experiment", "scenario", "point", "signal", "metric"]
     out = compare_frames(df[names == a], df[names == b], tol, keys, paired, interval)
     out.insert(2, "variant", [f"{p}: {b} vs {a}" if p else f"{b} vs {a}" for p in out.pop("point")])
-    if not out["verdict"].isin(("worse", "better", "same")).any():  # e.g. each in other experiments of a tree
-        raise CompareInputError(f"{results}: variants '{a}' and '{b}' have no cell in common (experiment, scenario, "
-                                "signal, metric; a sweep's point): neither was run beside the other")
+    require_pairs(out, f"{results}: variants '{a}' and '{b}' have no cell in common (experiment, scenario, signal, "
+                  "metric; a sweep's point): neither was run beside the other")  # e.g. in other experiments of a tree
     if paired and interval == "t":
         out.attrs["interval_note"] = T_NOTE
     return out
