@@ -76,7 +76,7 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     params = [params] if isinstance(params, str) else list(params or [])
     if wrong := [p for p in params if not isinstance(p, str)]:
         raise TypeError(f"sweep(): each of params is a name of sweep.params or 'KEY=LO..HI[:log]', not {wrong[0]!r}")
-    params, inline = sweeps.inline_params(params, "params")
+    params, inline = sweeps.inline_params(params, sweeps.LIBRARY_ARGS["params"])
     exp = _experiment(experiment, "sweep")
     file = Path(experiment) if isinstance(experiment, str | Path) else Path(exp.name)  # what errors name
     exp = sweeps.with_params_in_place(exp, inline, file)
@@ -87,12 +87,11 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     if grid and len(set(params)) != 2:
         raise ValueError(f"sweep(): grid=True takes two different parameters, not {params}")
     try:
-        points = sweeps.sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid)
+        points = sweeps.sweep_experiment(exp, params, list(groups) if groups else None, n, horizon, file, grid=grid,
+                                         args=sweeps.LIBRARY_ARGS)
         preflight(points, file)
-    except ConfigError as exc:  # name the argument: a parameter given in place as typed, the command's as this one's
-        exc = sweeps.in_place_error(exc, inline)
-        named = {"--horizon": "horizon", "PARAM": "params"}.get(exc.file)
-        raise (ConfigError(named, exc.key, exc.message) if named else exc) from None
+    except ConfigError as exc:  # a parameter given in place named as typed
+        raise sweeps.in_place_error(exc, inline) from None
     return run_experiment(points, traces=False)
 
 

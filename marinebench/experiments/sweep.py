@@ -16,7 +16,7 @@ import hashlib
 import itertools
 import json
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from numbers import Integral
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,8 @@ from marinebench.experiments.settings import MISSING, put_setting, setting_at, s
 from marinebench.keypaths import did_you_mean, near_misses
 
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
+COMMAND_ARGS = {"params": "PARAM", "horizon": "--horizon", "grid": "--grid"}  # what the command's errors name
+LIBRARY_ARGS = {"params": "params", "horizon": "horizon", "grid": "grid"}  # and marinebench.sweep's
 
 
 def points_error(n: int | None, horizon: float | None) -> tuple[str, str] | None:
@@ -76,7 +78,8 @@ def sweep_suffix(exp: Experiment, params: list[str], groups: list[str] | None = 
     return "_sweep" + "".join(f"_{t}" for t in tags)
 
 
-def inline_params(args: Sequence[str], what: str = "PARAM") -> tuple[list[str], dict[str, tuple[str, str]]]:
+def inline_params(args: Sequence[str],
+                  what: str = COMMAND_ARGS["params"]) -> tuple[list[str], dict[str, tuple[str, str]]]:
     """The sweep command's PARAM arguments: the name of one of the config's ``sweep.params``, or a parameter given
     in place, ``KEY=LO..HI`` (``:log`` after it for log spacing), with ``KEY`` as :class:`~marinebench.config.SweepParam`
     reads it: ``delta_p1=0.5..3``, ``observer.cdo.lmi_decay=0.1..1``, ``world.gnss_sigma=0.05..3:log``. Such a
@@ -180,7 +183,8 @@ def override_tags(overrides: Sequence[str], limit: int = 60) -> list[str]:
 
 
 def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | None, n: int | None,
-                     horizon: float | None, file: Path, overrides: Sequence[str] = (), grid: bool = False) -> Experiment:
+                     horizon: float | None, file: Path, overrides: Sequence[str] = (), grid: bool = False,
+                     args: Mapping[str, str] = COMMAND_ARGS) -> Experiment:
     """The experiment whose variants are the sweep's points, each run with the experiment's seeds.
 
     One at a time (default): ``n`` values of each parameter, the others at the variant's settings; every run
@@ -188,20 +192,21 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
     ``n`` values (default :data:`GRID_N`) of exactly two parameters, tagged also ``param2``, ``param2_value``.
     The experiment (and its output folder) is named by :func:`sweep_suffix`: a Monte-Carlo sweep, or one of
     some of the parameters or groups, with other points, another horizon or command-line ``overrides``, does
-    not replace the full sweep."""
+    not replace the full sweep. Errors about the request name the arguments ``args`` (the command's
+    :data:`COMMAND_ARGS`, :func:`marinebench.sweep`'s :data:`LIBRARY_ARGS`)."""
     spec = exp.sweep
     if spec is None:
         raise ConfigError(file, "sweep", "this config has no 'sweep' section: give the parameters in place, "
                           "KEY=LO..HI[:log] (e.g. marinebench sweep delta_p1=0.5..3 --config FILE)")
     name = exp.name + sweep_suffix(exp, params, groups, n, horizon, overrides, grid)
     exp = exp.part(exp.sweep_scenario()) if exp.scenarios is not None else exp
-    groups = _checked_request(spec, params, groups, grid, file)
+    groups = _checked_request(spec, params, groups, grid, file, args)
     several = len(spec.swept) > 1
     n = n or (GRID_N if grid else spec.n)
     variants = [v for base in (next(v for v in exp.variants if v.name == name) for name in spec.swept)
                 for axes in ([params] if grid else [[p] for p in params])
                 for v in _points(spec, base, axes, groups, n, file, exp.scenario, several)]
-    scenario = exp.scenario if horizon is None else _with_horizon(exp, horizon, file)
+    scenario = exp.scenario if horizon is None else _with_horizon(exp, horizon, file, args["horizon"])
     return exp.model_copy(update={"variants": variants, "figures": [], "table": None, "sweep": None, "name": name,
                                   "scenario": scenario})
 
@@ -216,7 +221,7 @@ def as_swept(exp: Experiment, params: list[str]) -> Experiment:
         "params": {p: spec.params[p] for p in params}, "claims": [c for c in spec.claims if c.param in params]})})
 
 
-def _with_horizon(exp: Experiment, horizon: float, file: Path) -> Any:
+def _with_horizon(exp: Experiment, horizon: float, file: Path, arg: str) -> Any:
     """The experiment's world run for ``horizon`` seconds, validated as if the file said so (its metric windows,
     the step count)."""
     try:
@@ -224,10 +229,11 @@ def _with_horizon(exp: Experiment, horizon: float, file: Path) -> Any:
         return type(exp.scenario).model_validate(exp.scenario.model_dump() | {"horizon": horizon})
     except ValueError as exc:  # a metric window past the horizon, or the world's own checks (a ValidationError)
         msg = exc.errors()[0]["msg"].removeprefix("Value error, ") if isinstance(exc, ValidationError) else str(exc)
-        raise ConfigError("--horizon", "", f"{horizon:g} s: {msg.removeprefix('horizon: ')} ({file})") from None
+        raise ConfigError(arg, "", f"{horizon:g} s: {msg.removeprefix('horizon: ')} ({file})") from None
 
 
-def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path) -> list[str]:
+def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path,
+                     args: Mapping[str, str]) -> list[str]:
     """The command line's parameters and world groups checked against the config's sweep section; the groups
     to run (default: all of the config's)."""
     unknown = [p for p in params if p not in spec.params]
@@ -236,9 +242,9 @@ def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | Non
         raise ConfigError(file, "sweep.params", f"unknown parameter(s) {unknown}{near}; sweepable: {sorted(spec.params)}")
     twice = sorted({p for p in params if list(params).count(p) > 1})
     if twice and not grid:
-        raise ConfigError("PARAM", "", f"parameter(s) {twice} given more than once ({file})")
+        raise ConfigError(args["params"], "", f"parameter(s) {twice} given more than once ({file})")
     if grid and (len(params) != 2 or params[0] == params[1]):
-        raise ConfigError("--grid", "", f"a grid sweep takes two different parameters, got {params} ({file})")
+        raise ConfigError(args["grid"], "", f"a grid sweep takes two different parameters, got {params} ({file})")
     groups = groups or list(spec.groups)
     bad = [g for g in groups if g not in spec.groups]
     if bad:
