@@ -332,7 +332,7 @@ def test_the_console_entry_point_keeps_the_commands_exit_codes(tiny_config, tmp_
 
 @pytest.mark.parametrize("command", [c.callback.__name__ for c in app.registered_commands])
 def test_help_shows_each_paragraph_of_the_docstring_on_one_line_and_its_first_as_the_summary(command):
-    """typer's rich help keeps a docstring's line breaks (which the terminal wraps again); cli.py joins them."""
+    """typer's rich help keeps a docstring's line breaks (which the terminal wraps again); cli/__init__.py joins them."""
     import inspect
 
     info = next(c for c in app.registered_commands if c.callback.__name__ == command)
@@ -376,7 +376,7 @@ def test_python_m_marinebench_is_the_command_and_its_manifests_say_marinebench(t
     done = subprocess.run([sys.executable, "-m", "marinebench", "list"], capture_output=True, text=True, cwd=tmp_path, check=False)
     assert done.returncode == 0 and "resetting_fto" in done.stdout, done
     package = Path(marinebench.__file__).parent
-    for started in (package / "__main__.py", package / "cli.py"):
+    for started in (package / "__main__.py", package / "cli" / "__main__.py"):
         monkeypatch.setattr(sys, "argv", [str(started), "run", "a b.yaml"])
         assert json.loads(writer.manifest())["command"] == "marinebench run 'a b.yaml'"
     monkeypatch.setattr(sys, "argv", [str(tmp_path / "study.py"), "--fast"])
@@ -532,7 +532,7 @@ def test_an_interrupted_run_says_how_to_go_on(tiny_config, tmp_path, monkeypatch
     def interrupt(*args, **kwargs):
         raise cli.Terminated if stop == "terminated" else stop
 
-    monkeypatch.setattr(cli, "_run_and_write", interrupt)
+    monkeypatch.setattr(cli.run, "_run_and_write", interrupt)
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "o"), "--jobs", "1", "--quiet"])
     assert res.exit_code == code and res.output.strip() == (
         "interrupted: the experiments already written are complete, the others untouched; the same command with "
@@ -547,7 +547,7 @@ def test_an_interrupted_run_leaves_an_existing_out_folder_and_removes_only_the_e
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "_run_and_write", interrupt)
+    monkeypatch.setattr(cli.run, "_run_and_write", interrupt)
     (tmp_path / "kept").mkdir()
     res = runner.invoke(app, ["run", str(tiny_config), "--out", str(tmp_path / "kept" / "a" / "b"), "--jobs", "1", "--quiet"])
     assert res.exit_code == 130
@@ -565,9 +565,9 @@ def test_the_entry_point_turns_sigterm_into_an_interruption(monkeypatch):
     installed = {}
     with pytest.raises(SystemExit):
         main(["--version"])
-    assert installed == {signal.SIGTERM: cli._terminated}
+    assert installed == {signal.SIGTERM: cli.common.raise_terminated}
     with pytest.raises(KeyboardInterrupt) as stopped:
-        cli._terminated(signal.SIGTERM, None)
+        cli.common.raise_terminated(signal.SIGTERM, None)
     assert isinstance(stopped.value, cli.Terminated)
 
 
@@ -946,14 +946,14 @@ def test_an_experiment_that_crashes_in_a_worker_is_one_line_and_the_others_are_w
     after the other experiments are written."""
     from marinebench import cli
 
-    real = cli._run_and_write
+    real = cli.run._run_and_write
 
     def crash_on_torben(path, *args, **kwargs):
         if path.stem == "torben_fig3":
             raise RuntimeError("boom")
         return real(path, *args, **kwargs)
 
-    monkeypatch.setattr(cli, "_run_and_write", crash_on_torben)  # inherited by the forked workers
+    monkeypatch.setattr(cli.run, "_run_and_write", crash_on_torben)  # inherited by the forked workers
     configs = [str(ROOT / "configs" / "bejarano_table4.yaml"), str(ROOT / "configs" / "torben_fig3.yaml")]
     res = CliRunner().invoke(app, ["run", *configs, "--seeds", "1", "--set", "scenario.horizon=10", "--quiet",
                                    "--jobs", "2", "--out", str(tmp_path)])
@@ -993,7 +993,7 @@ def test_a_worker_that_dies_is_one_line(tmp_path, monkeypatch):
     def die(path, *args, **kwargs):
         os._exit(9)  # as if killed: the pool breaks
 
-    monkeypatch.setattr(cli, "_run_and_write", die)  # inherited by the forked workers
+    monkeypatch.setattr(cli.run, "_run_and_write", die)  # inherited by the forked workers
     config = str(ROOT / "configs" / "bejarano_table4.yaml")
     res = CliRunner().invoke(app, ["run", config, config.replace("table4", "fig6"), "--seeds", "1", "--quiet",
                                    "--jobs", "2", "--out", str(tmp_path)])

@@ -280,7 +280,7 @@ def _program() -> str:
         started = Path(sys.argv[0]).resolve()
     except (OSError, RuntimeError):  # a loop of symbolic links
         return Path(sys.argv[0]).name
-    return "marinebench" if started in (here / "__main__.py", here / "cli.py") else Path(sys.argv[0]).name
+    return "marinebench" if started in (here / "__main__.py", here / "cli" / "__main__.py") else Path(sys.argv[0]).name
 
 
 def manifest(**fields) -> str:
