@@ -443,7 +443,7 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
     with the paired t interval (:func:`paired_t_ci`: their differences are noise); unpaired: as independent samples.
     In a sweep of several variants side by side (``sweep --variants``), point by point: the cells are the sweep's
     points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``); a tree (``results/``)
-    may hold both kinds of folder. Two variants that share no cell are refused, as :func:`require_pairs` does."""
+    may hold both kinds of folder. Two variants that share no cell are refused (:func:`require_pairs`)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics, claims=False)
     swept = df["sweep_variant"].notna() if "sweep_variant" in df.columns else pd.Series(False, index=df.index)
     names = df["sweep_variant"].where(swept, df["variant"]) if swept.any() else df["variant"]  # a tree may hold both
