@@ -346,6 +346,13 @@ def test_help_shows_each_paragraph_of_the_docstring_on_one_line_and_its_first_as
     assert re.search(rf"│ {name} +{re.escape(paragraphs[0])} +│", listing), listing
 
 
+def test_help_lists_every_command_once_in_the_order_of_a_session():
+    """cli/__init__.py registers the commands in one place: from running to reading results to checking configs."""
+    listing = runner.invoke(app, ["--help"], env={"COLUMNS": "400"}).output
+    assert re.findall(r"^│ (\w+) ", listing, flags=re.M) == ["run", "sweep", "bench", "compare", "report", "figures",
+                                                             "validate", "design", "schema", "list"]
+
+
 def test_version():
     from marinebench import __version__
     from marinebench.results.writer import git_revision
