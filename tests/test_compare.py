@@ -25,7 +25,7 @@ from marinebench.results.compare import (
     welch_ci,
 )
 
-from .conftest import tidy_metrics
+from .conftest import ROOT, tidy_metrics
 
 runner = CliRunner()
 
@@ -473,7 +473,6 @@ def test_real_run_compared_with_itself_rerun(tiny_config, tmp_path):
 def test_results_from_another_cpu_are_named_under_the_table(tmp_path):
     """Manifests from different hardware: the summary says so (a last-digit difference is then no mystery);
     from the same hardware, or without a machine record (older results), it says nothing."""
-    from .conftest import ROOT
 
     for name in ("here", "same", "there"):
         shutil.copytree(ROOT / "reference" / "quick" / "torben_fig1", tmp_path / name / "torben_fig1")
@@ -495,7 +494,6 @@ def test_results_from_another_cpu_are_named_under_the_table(tmp_path):
 def test_a_reference_older_than_an_option_still_pairs(tmp_path):
     """A reference written before an option existed (absent there, at its default now) pairs with a new run;
     a different value of the same option does not."""
-    from .conftest import ROOT
 
     ref = ROOT / "reference" / "quick" / "torben_fig1"
     for name in ("old", "new", "changed"):
@@ -838,3 +836,26 @@ def test_an_output_file_that_cannot_be_read_is_not_replaced(tmp_path, monkeypatc
     with pytest.raises(ConfigError, match=r"^--output: .*out\.md: cannot read what is there \(Permission denied\): "
                                           r"not replaced$"):
         writer.replaceable_file(tmp_path / "out.md", ("### marinebench compare:",), "--output")
+
+
+def test_a_sweep_at_another_horizon_is_another_world(tmp_path):
+    """A sweep's config.resolved.yaml holds the world its runs had: with --horizon, that horizon, not the config's
+    (in a config of several worlds, the swept one's), so compare refuses to pair two sweeps of one config run for
+    different times, and the folder's figures can still be drawn again from it."""
+    from marinebench.experiments.sweep import as_swept
+    from marinebench.loading import load_checked
+
+    args = ["sweep", "k", "--config", str(ROOT / "configs" / "torben_fig3.yaml"), "--n", "2", "--gnss", "dgnss",
+            "--jobs", "1", "--quiet"]
+    for horizon in ("2", "3"):
+        res = runner.invoke(app, [*args, "--horizon", horizon, "--out", str(tmp_path / horizon)])
+        assert res.exit_code == 0, res.output
+    short, longer = (tmp_path / h / f"torben_fig3_sweep_k_dgnss_n2_{h}s" for h in ("2", "3"))
+    assert yaml.safe_load((short / "config.resolved.yaml").read_text())["scenario"]["horizon"] == 2.0
+    res = runner.invoke(app, ["compare", str(short), str(longer)])
+    assert res.exit_code == 2 and "scenario.horizon" in res.output, res.output
+    assert runner.invoke(app, ["figures", str(short)]).exit_code == 0
+    several, _ = load_checked(ROOT / "configs" / "bejarano_fig4_5.yaml")
+    swept = as_swept(several, list(several.sweep.params), 7.0)
+    assert {name: world.horizon for name, world in swept.scenarios.items()} == {
+        name: 7.0 if name == several.sweep_scenario() else world.horizon for name, world in several.scenarios.items()}

@@ -211,14 +211,21 @@ def sweep_experiment(exp: Experiment, params: list[str], groups: list[str] | Non
                                   "scenario": scenario})
 
 
-def as_swept(exp: Experiment, params: list[str]) -> Experiment:
+def as_swept(exp: Experiment, params: list[str], horizon: float | None = None) -> Experiment:
     """The config a sweep of ``params`` ran, for its ``config.resolved.yaml``: ``sweep.params`` and
-    ``sweep.claims`` cut to those parameters. Every parameter of a file must be a setting of each swept variant,
-    and ``--variants`` may sweep a variant of which another parameter is no setting (``delta_p1`` beside Liu's
-    ESO), so the uncut config would not validate as a file."""
+    ``sweep.claims`` cut to those parameters, and the swept world's horizon the ``horizon`` its runs had
+    (``sweep --horizon``; ``compare`` pairs only runs of the same world). Every parameter of a file must be a
+    setting of each swept variant, and ``--variants`` may sweep a variant of which another parameter is no
+    setting (``delta_p1`` beside Liu's ESO), so the uncut config would not validate as a file."""
     spec = exp.sweep
-    return exp.model_copy(update={"sweep": spec.model_copy(update={
-        "params": {p: spec.params[p] for p in params}, "claims": [c for c in spec.claims if c.param in params]})})
+    update: dict[str, Any] = {"sweep": spec.model_copy(update={
+        "params": {p: spec.params[p] for p in params}, "claims": [c for c in spec.claims if c.param in params]})}
+    if horizon is not None and exp.scenarios is not None:
+        name = exp.sweep_scenario()
+        update["scenarios"] = {**exp.scenarios, name: exp.scenarios[name].model_copy(update={"horizon": horizon})}
+    elif horizon is not None:
+        update["scenario"] = exp.scenario.model_copy(update={"horizon": horizon})
+    return exp.model_copy(update=update)
 
 
 def _with_horizon(exp: Experiment, horizon: float, file: Path, arg: str) -> Any:

@@ -265,7 +265,8 @@ def write_sweep(target: Path, exp, base, config: Path, metrics: pd.DataFrame, pa
         claims = [] if grid else sweep_claims(metrics, base.sweep)
         mapped = grid_claims(metrics, base.sweep) if grid else []  # the same claims, along each slice of the grid
         metrics.to_csv(tmp / "metrics.csv", index=False, float_format=METRICS_FLOAT)
-        (tmp / "config.resolved.yaml").write_text(resolved_yaml(as_swept(base, params)), encoding="utf-8")
+        swept = as_swept(base, params, exp.scenario.horizon)  # with the horizon its runs had (--horizon)
+        (tmp / "config.resolved.yaml").write_text(resolved_yaml(swept), encoding="utf-8")
         (tmp / "table.md").write_text("\n".join(table(metrics, metric, base.sweep, model=base.model_label())
                                                 for metric in shown), encoding="utf-8")
         if claims:
