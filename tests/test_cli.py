@@ -349,8 +349,8 @@ def test_help_shows_each_paragraph_of_the_docstring_on_one_line_and_its_first_as
 def test_help_lists_every_command_once_in_the_order_of_a_session():
     """cli/__init__.py registers the commands in one place: from running to reading results to checking configs."""
     listing = runner.invoke(app, ["--help"], env={"COLUMNS": "400"}).output
-    assert re.findall(r"^│ (\w+) ", listing, flags=re.M) == ["run", "sweep", "bench", "compare", "report", "figures",
-                                                             "validate", "design", "schema", "list"]
+    assert re.findall(r"^│ (\w+) ", listing, flags=re.MULTILINE) == [
+        "run", "sweep", "bench", "compare", "report", "figures", "validate", "design", "schema", "list"]
 
 
 def test_version():
