@@ -859,3 +859,33 @@ def test_a_sweep_at_another_horizon_is_another_world(tmp_path):
     swept = as_swept(several, list(several.sweep.params), 7.0)
     assert {name: world.horizon for name, world in swept.scenarios.items()} == {
         name: 7.0 if name == several.sweep_scenario() else world.horizon for name, world in several.scenarios.items()}
+
+
+def test_sweeps_of_other_points_pair_by_value_not_by_number(tmp_path):
+    """A sweep's variants number its points (``delta_p1_001_default``): with ``--n 2`` the second is 3, with
+    ``--n 3`` it is 1.75. compare pairs what was run: the two common values are the same, 1.75 is new, and nothing
+    is worse or better (paired by number, 3 against 1.75 was a change of every error)."""
+    args = ["sweep", "delta_p1=0.5..3", "--config", str(ROOT / "configs" / "bejarano_fig6.yaml"), "--horizon", "6",
+            "--seeds", "2", "--jobs", "1", "--quiet"]
+    for n in ("2", "3"):
+        res = runner.invoke(app, [*args, "--n", n, "--out", str(tmp_path / n)])
+        assert res.exit_code == 0, res.output
+    two, three = (next((tmp_path / n).iterdir()) for n in ("2", "3"))
+    res = runner.invoke(app, ["compare", str(two), str(three), "--format", "csv"])
+    assert res.exit_code == 0, res.output
+    cells = pd.read_csv(io.StringIO(res.output))
+    cells = cells[cells.metric != "claim"]
+    assert sorted(cells.groupby("verdict")["variant"].unique().map(sorted).items()) == [
+        ("new", ["delta_p1=1.75"]), ("same", ["delta_p1=0.5", "delta_p1=3"])]
+
+
+def test_points_that_seven_digits_cannot_tell_apart_keep_their_variant():
+    """metrics.csv writes a point's value to 7 digits: two points it cannot tell apart are not one cell."""
+    from marinebench.results.compare import by_point
+
+    runs = pd.DataFrame({"experiment": "e", "seed": [0, 0, 0, 1, 0],
+                         "variant": ["x_000_default", "x_001_default", "x_002_default", "x_002_default", "run"],
+                         "param": ["x", "x", "x", "x", None], "param_value": [1000.0, 1000.00000001, 1001.0, 1001.0, None],
+                         "gnss": ["default"] * 4 + [None]})
+    assert by_point(runs)["variant"].tolist() == ["x=1000 (x_000_default)", "x=1000 (x_001_default)", "x=1001", "x=1001",
+                                                  "run"]

@@ -234,7 +234,7 @@ def test_compare_pairs_two_variants_sweeps_point_by_point(tmp_path):
     res = CliRunner().invoke(app, ["compare", str(a), str(b), "--metric", "rmse", "--format", "json"])
     report = json.loads(res.output)
     assert report["paired"] and report["renamed"].startswith("Compared as one experiment")
-    assert {c["variant"] for c in report["cells"]} == {"offset_yaw_000_default", "offset_yaw_001_default"}
+    assert {c["variant"] for c in report["cells"]} == {"offset_yaw=0", "offset_yaw=10"}  # by point
     assert all(c["n"] == 2 and c["unpaired"] == 0 for c in report["cells"])
     assert any(c["verdict"] != "same" for c in report["cells"])  # the EO-fed loop differs from the CDO-fed one
 

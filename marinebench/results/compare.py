@@ -416,11 +416,12 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             # One config's results under two names: a sweep is named for its command-line overrides and seeds
             # (``sweep k delta eps --seed 7 --seeds 5`` writes torben_fig3_sweep_seed=7_5seeds, beside the
             # committed torben_fig3_sweep_5seeds). Compared as one experiment; check_compatible still refuses
-            # another world, cells pair only by variant, and a line under the table names both.
+            # another world, cells pair only by variant (a sweep's by point), and a line under the table names both.
             cdirs, cman, cframe["experiment"] = {name: cdirs[other]}, {name: cman[other]}, name
             renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline), results of one config."
     check_compatible(bdirs, cdirs, paired)
-    table = compare_frames(*select_metrics([bframe, cframe], metrics), tol, paired=paired, interval=interval)
+    table = compare_frames(*select_metrics([by_point(bframe), by_point(cframe)], metrics), tol, paired=paired,
+                           interval=interval)
     if metrics is None or "claim" in metrics:
         claims = compare_claims(load_claims(bman), load_claims(cman))
         if len(claims):
@@ -471,12 +472,33 @@ def _variant_names(df: pd.DataFrame, names: pd.Series, swept: pd.Series, most: i
     return ", ".join(have[:most]) + (f", … ({len(have)} in all)" if len(have) > most else "")
 
 
+def by_point(df: pd.DataFrame) -> pd.DataFrame:
+    """A frame whose sweep runs are named by their point (``k=0.5, dgnss``; side by side, ``proposed_d2.2:
+    noise_scale=0.6``; :func:`_points`) instead of their variant, which numbers the points (``k_001_dgnss``): between
+    two folders, cells pair by what was run, so two sweeps of one config with other ``--n`` pair their common values
+    and no others. Runs (no ``param``) keep their variant; points that metrics.csv's 7 digits cannot tell apart add it
+    (``x=1000 (x_001_default)``)."""
+    swept = df["param"].notna() if "param" in df.columns else pd.Series(False, index=df.index)
+    if not swept.any():
+        return df
+    labels = pd.Series(_points(df[swept]), index=df.index[swept])
+    if "sweep_variant" in df.columns:
+        side = df.loc[swept, "sweep_variant"]
+        labels = labels.where(side.isna(), side + ": " + labels)
+    runs = df.loc[swept, ["experiment", "variant"]].assign(label=labels)
+    shared = runs.drop_duplicates().duplicated(["experiment", "label"], keep=False)  # points 7 digits cannot tell apart
+    clash = runs["label"].isin(runs.drop_duplicates()[shared]["label"])
+    labels = labels.where(~clash, labels + " (" + runs["variant"] + ")")
+    return df.assign(variant=df["variant"].where(~swept, labels))
+
+
 def _points(df: pd.DataFrame) -> list[str]:
-    """Each sweep run's point: its parameter value(s), and its world group unless that is the only ``default``
-    (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``; in a tree, a one-at-a-time sweep's rows have no ``param2``)."""
-    labels = df["param"] + "=" + df["param_value"].map("{:g}".format)
+    """Each sweep run's point: its parameter value(s) to metrics.csv's 7 digits, and its world group unless that is
+    the only ``default`` (``noise=0.6``, ``k=0.3, dgnss``, ``k=0.3, eps=2``; in a tree, a one-at-a-time sweep's rows
+    have no ``param2``)."""
+    labels = df["param"] + "=" + df["param_value"].map("{:.7g}".format)
     if "param2" in df.columns:
-        second = ", " + df["param2"].astype(str) + "=" + df["param2_value"].map("{:g}".format)
+        second = ", " + df["param2"].astype(str) + "=" + df["param2_value"].map("{:.7g}".format)
         labels += np.where(df["param2"].notna(), second, "")
     return list(labels + np.where(df["gnss"] == "default", "", ", " + df["gnss"]))
 
