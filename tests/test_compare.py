@@ -889,3 +889,15 @@ def test_points_that_seven_digits_cannot_tell_apart_keep_their_variant():
                          "gnss": ["default"] * 4 + [None]})
     assert by_point(runs)["variant"].tolist() == ["x=1000 (x_000_default)", "x=1000 (x_001_default)", "x=1001", "x=1001",
                                                   "run"]
+
+
+def test_a_clash_of_points_in_one_experiment_leaves_the_others_labels_alone():
+    """Two points that one sweep cannot tell apart keep their variant there only: another experiment of the tree
+    with the same value keeps the plain label, so it still pairs with a folder holding that experiment alone."""
+    from marinebench.results.compare import by_point
+
+    runs = pd.DataFrame({"experiment": ["a", "a", "b"], "seed": 0,
+                         "variant": ["x_000_default", "x_001_default", "x_000_default"],
+                         "param": "x", "param_value": [1000.0, 1000.00000001, 1000.0], "gnss": "default"})
+    assert by_point(runs)["variant"].tolist() == ["x=1000 (x_000_default)", "x=1000 (x_001_default)", "x=1000"]
+    assert by_point(runs[runs["experiment"] == "b"])["variant"].tolist() == ["x=1000"]

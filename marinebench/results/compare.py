@@ -476,8 +476,8 @@ def by_point(df: pd.DataFrame) -> pd.DataFrame:
     """A frame whose sweep runs are named by their point (``k=0.5, dgnss``; side by side, ``proposed_d2.2:
     noise_scale=0.6``; :func:`_points`) instead of their variant, which numbers the points (``k_001_dgnss``): between
     two folders, cells pair by what was run, so two sweeps of one config with other ``--n`` pair their common values
-    and no others. Runs (no ``param``) keep their variant; points that metrics.csv's 7 digits cannot tell apart add it
-    (``x=1000 (x_001_default)``)."""
+    and no others. Runs (no ``param``) keep their variant; points of one experiment that metrics.csv's 7 digits cannot
+    tell apart add it (``x=1000 (x_001_default)``)."""
     swept = df["param"].notna() if "param" in df.columns else pd.Series(False, index=df.index)
     if not swept.any():
         return df
@@ -486,8 +486,8 @@ def by_point(df: pd.DataFrame) -> pd.DataFrame:
         side = df.loc[swept, "sweep_variant"]
         labels = labels.where(side.isna(), side + ": " + labels)
     runs = df.loc[swept, ["experiment", "variant"]].assign(label=labels)
-    shared = runs.drop_duplicates().duplicated(["experiment", "label"], keep=False)  # points 7 digits cannot tell apart
-    clash = runs["label"].isin(runs.drop_duplicates()[shared]["label"])
+    # points 7 digits cannot tell apart: one label for several variants of one experiment
+    clash = runs.groupby(["experiment", "label"])["variant"].transform("nunique") > 1
     labels = labels.where(~clash, labels + " (" + runs["variant"] + ")")
     return df.assign(variant=df["variant"].where(~swept, labels))
 
