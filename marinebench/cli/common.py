@@ -14,6 +14,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from marinebench.errors import ConfigError, MarinebenchError
 
@@ -30,6 +31,13 @@ Unpaired = Annotated[bool, typer.Option("--unpaired", help="compare the two side
                                         "another --seed): every run counts, Welch's t interval (wider)")]
 err = Console(stderr=True, highlight=False, soft_wrap=True)
 out = Console(highlight=False, soft_wrap=True)
+
+
+def progress_bar(label: str, quiet: bool) -> Progress:
+    """``run``'s and ``sweep``'s bar on stderr: ``label``, the bar, the percentage, the time elapsed and the time
+    left; it stays on screen when done, and ``--quiet`` disables it."""
+    return Progress(TextColumn(label), BarColumn(), TextColumn("{task.percentage:>5.1f}%"), TimeElapsedColumn(),
+                    TimeRemainingColumn(), console=err, disable=quiet)
 
 
 def _print_version(value: bool) -> None:

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from marinebench.cli.common import (
     ProfileName,
@@ -22,6 +21,7 @@ from marinebench.cli.common import (
     one_line_errors,
     out,
     output_stem,
+    progress_bar,
     up_to_date,
 )
 from marinebench.errors import MarinebenchError, StiffnessError
@@ -137,10 +137,7 @@ def _run_serial(loaded: list, base: Path, quiet: bool) -> int:
     """The experiments one after the other with a progress bar each; returns the number of failing claims."""
     failing = 0
     for path, exp, origins in loaded:
-        with one_line_errors(), Progress(
-            TextColumn(f"{exp.name:<22}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-            TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
-        ) as bar:
+        with one_line_errors(), progress_bar(f"{exp.name:<22}", quiet) as bar:
             task = bar.add_task(exp.name, total=1)
             line, warning, n_failing = _run_and_write(
                 path, exp, origins, _target(base, path),
@@ -167,10 +164,7 @@ def _run_parallel(loaded: list, base: Path, jobs: int, quiet: bool) -> int:
     order = sorted(loaded, key=lambda item: run_steps(item[1]), reverse=True)  # the longest first
     tasks = {i: (path, exp, origins, _target(base, path)) for i, (path, exp, origins) in enumerate(order)}
     # the pool first: its workers are forked before the progress bar starts its thread
-    with local_pool(jobs) as pool, Progress(
-        TextColumn(f"{len(order)} experiments, {jobs} processes"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-        TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet, transient=False,
-    ) as bar:
+    with local_pool(jobs) as pool, progress_bar(f"{len(order)} experiments, {jobs} processes", quiet) as bar:
         task = bar.add_task("run", total=sum(steps(exp) for _, exp, _ in order))
         try:
             for _, (line, warning, n_failing, error) in pool.results(

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 from marinebench.cli.common import (
     DEFAULT_SWEEP,
@@ -26,6 +25,7 @@ from marinebench.cli.common import (
     one_line_errors,
     out,
     output_stem,
+    progress_bar,
     up_to_date,
 )
 from marinebench.errors import ConfigError, MarinebenchError, UserCodeError
@@ -184,10 +184,8 @@ def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str 
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
     try:
-        with one_line_errors(), output_folder(target.parent), where as pool, Progress(
-            TextColumn(f"sweep {len(exp.variants) * exp.seeds} runs"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-            TimeElapsedColumn(), TimeRemainingColumn(), console=err, disable=quiet,
-        ) as bar:
+        with (one_line_errors(), output_folder(target.parent), where as pool,
+              progress_bar(f"sweep {len(exp.variants) * exp.seeds} runs", quiet) as bar):
             task = bar.add_task("sweep", total=1)
             executor = pool.describe() if pool is not None else "this process"
             t_sim = _time.perf_counter()
