@@ -471,7 +471,8 @@ def test_an_output_folder_that_cannot_be_written_fails_before_the_runs(tiny_conf
 
 def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp_path, monkeypatch):
     """Ctrl-C after the first of three batches: one line naming the kept batch and exit 130; the same command
-    then runs only the two others and gives the numbers of an uninterrupted sweep."""
+    then runs only the two others, says so (its times cover only those: the manifest's ``chunks_run`` of
+    ``chunks``), and gives the numbers of an uninterrupted sweep."""
     from marinebench.experiments import chunks
 
     real, calls = chunks.run_chunk, []
@@ -492,11 +493,13 @@ def test_an_interrupted_sweep_says_what_it_kept_and_the_same_command_resumes(tmp
         f"interrupted: 1 of 3 batch(es) finished and kept in {partial}; the same command resumes from them")
     monkeypatch.setattr(chunks, "run_chunk", real)
     res = runner.invoke(app, [*args, "--out", str(tmp_path / "a")])
-    assert res.exit_code == 0 and "summed over the 2 batch(es) run" in res.output, res.output
+    assert res.exit_code == 0 and "summed over the 2 batch(es) run, 1 kept from the interrupted sweep)" in res.output
     assert not partial.exists()
-    whole = runner.invoke(app, [*args, "--out", str(tmp_path / "b"), "--quiet"])
-    assert whole.exit_code == 0
+    whole = runner.invoke(app, [*args, "--out", str(tmp_path / "b")])
+    assert whole.exit_code == 0 and "summed over the 3 batch(es) run)" in whole.output, whole.output
     name = "torben_fig3_sweep_k_n3_2s"
+    resumed, uninterrupted = (json.loads((tmp_path / d / name / "manifest.json").read_text()) for d in "ab")
+    assert (resumed["chunks"], resumed["chunks_run"]) == (3, 2) and (uninterrupted["chunks"], uninterrupted["chunks_run"]) == (3, 3)
     assert (tmp_path / "a" / name / "metrics.csv").read_text() == (tmp_path / "b" / name / "metrics.csv").read_text()
 
 

@@ -75,7 +75,7 @@ def sweep(
     instead. Where a run is simulated does not change its numbers."""
     import time as _time
 
-    from marinebench.experiments.chunks import check_partial, discard_partial
+    from marinebench.experiments.chunks import check_partial, chunks_of, discard_partial
     from marinebench.experiments.sweep import GRID_N, inline_params, sweep_suffix
     from marinebench.results.claims import summary_line
     from marinebench.results.outputs import write_sweep
@@ -104,11 +104,12 @@ def sweep(
         return
     t0 = _time.perf_counter()
     metrics, summed, ran, wall, executor = _simulate_sweep(exp, config, target, chunk_size, dask, workers, jobs, quiet)
+    chunks = len(chunks_of(exp, chunk_size))
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
             n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept,
-            chunk_size=chunk_size, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
+            chunk_size=chunk_size, chunks=chunks, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
             batch_time_s=round(summed, 3),
         )
     except OSError as exc:  # e.g. the disk filled up: the finished batches stay in the .partial folder
@@ -120,7 +121,8 @@ def sweep(
         checked = (f", {summary_line(claims)}" if claims else
                    f", {len(mapped)} claim(s) mapped over the grid (claims.md)" if mapped else "")
         out.print(f"sweep: {len(exp.variants) * exp.seeds} runs x {exp.scenario.horizon:g} s in {_time.perf_counter() - t0:.1f} s "
-                  f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run){checked} "
+                  f"({wall:.1f} s simulating in {executor}; {summed:.1f} s summed over the {ran} batch(es) run"
+                  f"{f', {chunks - ran} kept from the interrupted sweep' if ran < chunks else ''}){checked} "
                   f"-> {target}", markup=False)
     claims_verdict(require_claims, sum(c.fails for c in claims))
 
