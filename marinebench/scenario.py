@@ -94,11 +94,12 @@ class ScenarioBase(BaseModel):
 
     @model_validator(mode="after")
     def _steps_in_range(self) -> ScenarioBase:
+        # checks of the pair name both keys ('horizon|dt'): an error names the one a --set changed, else the first
         if self.dt > self.horizon:
-            raise ValueError(f"dt={self.dt} exceeds horizon={self.horizon}")
+            raise ValueError(f"dt|horizon: dt={self.dt:g} s exceeds horizon={self.horizon:g} s")
         if self.horizon / self.dt > self.MAX_STEPS:
-            raise ValueError(f"horizon: {self.horizon:g} s at dt={self.dt:g} s is {self.horizon / self.dt:.3g} steps per "
-                             f"run; at most {self.MAX_STEPS:.0e}")
+            raise ValueError(f"horizon|dt: {self.horizon:g} s at dt={self.dt:g} s is {self.horizon / self.dt:.3g} steps "
+                             f"per run; at most {self.MAX_STEPS:.0e}")
         return self
 
     def per_run_defaults(self) -> dict[str, float]:

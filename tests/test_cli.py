@@ -600,6 +600,12 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.horizon=1e7"])
     assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenario.horizon: 1e+07 s at dt=0.01 s is 1e+09 "
                                                         "steps per run; at most 1e+08"), res.output
+    # a check of a pair names the one of the two that the --set gave, not the file's other
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.dt=1e-9"])
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenario.dt: 4 s at dt=1e-09 s is 4e+09 "
+                                                        "steps per run; at most 1e+08"), res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.dt=5"])
+    assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario.dt: dt=5 s exceeds horizon=4 s", res.output
 
 
 def test_a_world_too_extreme_to_build_is_one_line_at_validation(tmp_path):

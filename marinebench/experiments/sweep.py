@@ -236,7 +236,7 @@ def _with_horizon(exp: Experiment, horizon: float, file: Path, arg: str) -> Any:
         return type(exp.scenario).model_validate(exp.scenario.model_dump() | {"horizon": horizon})
     except ValueError as exc:  # a metric window past the horizon, or the world's own checks (a ValidationError)
         msg = exc.errors()[0]["msg"].removeprefix("Value error, ") if isinstance(exc, ValidationError) else str(exc)
-        raise ConfigError(arg, "", f"{horizon:g} s: {msg.removeprefix('horizon: ')} ({file})") from None
+        raise ConfigError(arg, "", f"{horizon:g} s: {msg.removeprefix('horizon|dt: ').removeprefix('dt|horizon: ')} ({file})") from None
 
 
 def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path,
