@@ -18,6 +18,7 @@ Bad input raises a :class:`marinebench.errors.MarinebenchError` whose message na
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -62,11 +63,12 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
     parameter (default: ``sweep.n``, or 11 on a grid); ``groups``: some of ``sweep.groups`` (Torben's ``dgnss``,
     ``dualband``; default: all); ``horizon``: simulated seconds per run. ``result.metrics`` tags every run with
     ``param``, ``param_value`` and ``gnss`` (its group), and on a grid ``param2`` and ``param2_value``: the
-    command's ``metrics.csv``, which rounds the values to 7 digits. Other settings go through :func:`load`:
+    command's ``metrics.csv`` (its rows in the same order), which rounds the values to 7 digits. Other settings go through :func:`load`:
     ``sets=["seeds=5"]``, ``"sweep.variants=[a, b]"``, or a parameter with probes or fixed settings,
     ``"sweep.params.NAME={key: KEY, range: [LO, HI], fixed: {...}}"``. A path is loaded first, as :func:`load` does."""
     from marinebench.errors import ConfigError
     from marinebench.experiments import sweep as sweeps
+    from marinebench.experiments.chunks import sweep_order
     from marinebench.experiments.runner import run as run_experiment
     from marinebench.preflight import preflight
 
@@ -92,7 +94,8 @@ def sweep(experiment: Experiment | str | Path, params: Sequence[str] | str | Non
         preflight(points, file)
     except ConfigError as exc:  # a parameter given in place named as typed
         raise sweeps.in_place_error(exc, inline) from None
-    return run_experiment(points, traces=False)
+    result = run_experiment(points, traces=False)
+    return dataclasses.replace(result, metrics=sweep_order(result.metrics, points))
 
 
 def _experiment(experiment: Experiment | str | Path, caller: str) -> Experiment:

@@ -5,7 +5,8 @@ sweep resumes.
 process, or on a pool of :mod:`marinebench.experiments.cluster`: local workers or Dask) and keeps each
 chunk's metrics in ``.<folder>.partial/`` beside the sweep's folder until the results are written
 (:func:`discard_partial`). The chunks on disk are reused only for the same inputs (``provenance.inputs_key``),
-and runs are seeded per run, so neither chunking nor resuming changes a number.
+and runs are seeded per run, so neither chunking nor resuming changes a number; the rows are put in one order
+(:func:`sweep_order`), so neither changes ``metrics.csv`` either.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from marinebench.config import Experiment, Variant
@@ -49,7 +51,7 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     seeding), so chunking does not change any number. With a ``pool`` (``experiments.cluster``: local worker
     processes or Dask) the unfinished chunks are submitted at once and each is saved here as it arrives, so the
     numbers are the same as in one process and an interrupted parallel sweep resumes the same way.
-    Returns (metrics in chunk order, simulation wall time summed over the chunks run, chunks run).
+    Returns (metrics in :func:`sweep_order`, simulation wall time summed over the chunks run, chunks run).
     """
     from marinebench.experiments.cluster import ChunkFailed
     from marinebench.experiments.runner import steps
@@ -86,7 +88,19 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
                            f"{exc.cause}); the finished chunks are kept in {partial}, rerun the same command to "
                            "resume") from None
     frames = [kept[c] if c in kept else read_tidy(path) for c, path in enumerate(paths)]  # kept ones: read once
-    return pd.concat(frames, ignore_index=True), wall, len(pending)
+    return sweep_order(pd.concat(frames, ignore_index=True), exp), wall, len(pending)
+
+
+def sweep_order(metrics: pd.DataFrame, exp: Experiment) -> pd.DataFrame:
+    """A sweep's metrics rows in one order whatever its batches (``--chunk-size``, ``--jobs``): metric by metric
+    (signal and metric in order of first appearance), each metric's rows variant by variant in the order of
+    ``exp.variants``, a variant's rows in seed order as it ran them. That is the layout of the sweep run in one
+    batch, except that a diagnostic two observer kinds share (``n_resets``) lists both kinds' runs in one block.
+    Before, each batch listed its own rows metric by metric, so the same numbers came in another order for
+    another chunk size."""
+    block = metrics.groupby(["scenario", "signal", "metric"], sort=False, dropna=False).ngroup().to_numpy()
+    variant = metrics["variant"].map({v.name: i for i, v in enumerate(exp.variants)}).to_numpy()
+    return metrics.iloc[np.lexsort((variant, block))].reset_index(drop=True)  # stable: a variant's seeds keep order
 
 
 def _kept_key(partial: Path) -> str | None:
