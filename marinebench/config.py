@@ -549,7 +549,7 @@ class Experiment(BaseModel):
             part = self.part(name)
             if not part.variants:
                 raise ValueError(f"variants: none runs on scenario '{name}'")
-            part._check_single()
+            part._check_single(f"scenarios.{name}.horizon")
         return self
 
     def _check_study_sweep(self, have: str) -> None:
@@ -610,9 +610,10 @@ class Experiment(BaseModel):
         listed = next((v.scenarios for v in self.variants if v.name == self.sweep.variant), None)
         return (listed or list(self.scenarios))[0]
 
-    def check_windows(self, horizon: float) -> None:
+    def check_windows(self, horizon: float, horizon_key: str = "scenario.horizon") -> None:
         """Every error metric's time window overlaps the run ``[0, horizon]`` (ValueError otherwise): a window
-        beyond the horizon would measure nothing (and a ratio of such metrics divides by zero)."""
+        beyond the horizon would measure nothing (and a ratio of such metrics divides by zero). The error names
+        the pair ``metrics.<i>|<horizon_key>``, so that it points at the horizon when a ``--set`` just changed it."""
         for i, m in enumerate(self.metrics):
             if m.kind in ("int", "recovery"):
                 continue
@@ -621,7 +622,7 @@ class Experiment(BaseModel):
                 hint = ""
                 if m.kind != "j_tot" and "t_start" not in m.model_fields_set:
                     hint = f" (t_start defaults to {m.t_start:g} s: set metrics.{i}.t_start)"
-                raise ValueError(f"metrics.{i}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of "
+                raise ValueError(f"metrics.{i}|{horizon_key}: metric '{m.label}' window [{start:g}, {end:g}] s is empty in a run of "
                                  f"{horizon:g} s{hint}")
 
     def _check_table(self, names: list[str], kinds: list[str]) -> None:
@@ -645,14 +646,15 @@ class Experiment(BaseModel):
             if unknown:
                 raise ValueError(f"table.paper.values: unknown variants {sorted(unknown)} (have: {', '.join(names)})")
 
-    def _check_single(self) -> Experiment:
-        """A single-scenario experiment (or one scenario's part of a study): unique names, metrics that apply to
-        the world, and a table, sweep and figures that name its variants and metrics."""
+    def _check_single(self, horizon_key: str = "scenario.horizon") -> Experiment:
+        """A single-scenario experiment (or one scenario's part of a study, whose world's horizon is
+        ``horizon_key``): unique names, metrics that apply to the world, and a table, sweep and figures that name
+        its variants and metrics."""
         names = [v.name for v in self.variants]
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"variants: duplicate names {sorted(dup)}")
-        kinds = self._check_metrics()
+        kinds = self._check_metrics(horizon_key)
         if self.table is not None:
             self._check_table(names, kinds)
         if self.sweep is not None:
@@ -669,7 +671,7 @@ class Experiment(BaseModel):
                 raise ValueError(f"figures: {f.file} names unknown variants {sorted(unknown)} (have: {', '.join(names)})")
         return self
 
-    def _check_metrics(self) -> list[str]:
+    def _check_metrics(self, horizon_key: str) -> list[str]:
         """Unique metric names, closed-loop metrics on closed-loop worlds only, windows inside the run; returns the
         names."""
         kinds = [m.label for m in self.metrics]
@@ -679,7 +681,7 @@ class Experiment(BaseModel):
             if m.kind in ("int", "recovery") and self.scenario.kind != "rov_tracking":
                 named = f"'{m.label}' ({m.kind})" if m.label != m.kind else f"'{m.kind}'"
                 raise ValueError(f"metrics: {named} applies to rov_tracking scenarios only")
-        self.check_windows(self.scenario.horizon)
+        self.check_windows(self.scenario.horizon, horizon_key)
         return kinds
 
     def _check_sweep(self, names: list[str], kinds: list[str]) -> None:

@@ -10,6 +10,7 @@ type, instead of matching a list of known tags, so a new kind needs no change he
 from __future__ import annotations
 
 import difflib
+import re
 import types
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
@@ -140,3 +141,16 @@ def unknown_key_hint(key: str, allowed: list[str], most: int = 12) -> str:
         shown = ", ".join(allowed[:most]) + (", …" if len(allowed) > most else "")
         return f" (allowed here: {shown})"
     return ""
+
+
+#: A cross-field check's message naming the key(s) it is about, relative to where the check sits:
+#: ``variants.1.scenarios: ...``, or a pair checked together, ``horizon|dt: ...`` (the first is the one to name
+#: unless the user just changed the other).
+_KEYED = re.compile(r"^([A-Za-z0-9_.|-]+): (.+)$", re.DOTALL)
+
+
+def keyed_message(msg: str) -> tuple[list[str], str]:
+    """The keys a check's message names before its colon (:data:`_KEYED`) and the rest of it; ``([], msg)`` for a
+    message that names none."""
+    where = _KEYED.match(msg)
+    return (where[1].split("|"), where[2]) if where else ([], msg)

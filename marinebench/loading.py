@@ -20,7 +20,7 @@ from pydantic import ValidationError
 
 from marinebench.config import AnyScenario, Experiment
 from marinebench.errors import ConfigError
-from marinebench.keypaths import key_path, unknown_key_hint
+from marinebench.keypaths import key_path, keyed_message, unknown_key_hint
 from marinebench.plugins import resolve_source
 from marinebench.preflight import preflight
 from marinebench.settings import YAML_BOOLEANS, lax_boolean
@@ -337,11 +337,11 @@ def validation_to_config_error(exc: ValidationError, origins: dict[str, Path], r
         msg = "unknown key" + unknown_key_hint(key, allowed)
     elif err["type"] == "literal_error" and isinstance(err.get("input"), bool):
         msg += f" ({YAML_BOOLEANS}: quote the word)"
-    where = re.match(r"^([A-Za-z0-9_.|-]+): (.+)$", msg)
-    if where:  # a cross-field check that names its key, relative to where it sits: 'variants.1.scenarios: ...';
+    named, rest = keyed_message(msg)
+    if named:  # a cross-field check that names its key, relative to where it sits: 'variants.1.scenarios: ...';
         # one of a pair ('horizon|dt: ...'): the one a --set gave, which is what the user just changed, else the first
-        keys = [".".join(filter(None, (key, k))) for k in where[1].split("|")]
-        key, msg = next((k for k in keys if _origin_of(k, origins) == Path("--set")), keys[0]), where[2]
+        keys = [".".join(filter(None, (key, k))) for k in named]
+        key, msg = next((k for k in keys if _origin_of(k, origins) == Path("--set")), keys[0]), rest
     file = _origin_of(key, origins)
     # the other keys with errors (a union's other members failing at the same key add nothing)
     first = key or "(top level)"

@@ -622,6 +622,17 @@ def test_bad_set_names_the_option(tiny_config, tmp_path):
                                                         "steps per run; at most 1e+08"), res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.dt=5"])
     assert res.exit_code == 2 and res.output.strip() == "error: --set: scenario.dt: dt=5 s exceeds horizon=4 s", res.output
+    # a horizon that leaves a metric's window empty: the --set, not the file's metric (which a --set of the metric,
+    # or the file alone, still gets); in a study, the horizon of the world the --set named
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "scenario.horizon=0.5"])
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenario.horizon: metric 'std' window [1, 0.5] s "
+                                                        "is empty in a run of 0.5 s"), res.output
+    res = runner.invoke(app, ["run", str(tiny_config), "--set", "metrics.0.t_start=9"])
+    assert res.exit_code == 2 and res.output.startswith("error: --set: metrics.0: metric 'std' window [9, 4] s"), res.output
+    res = runner.invoke(app, ["validate", str(ROOT / "configs" / "bejarano_fig4_5.yaml"), "--set",
+                              "scenarios.noise_free.horizon=3"])
+    assert res.exit_code == 2 and res.output.strip() == ("error: --set: scenarios.noise_free.horizon: metric 'std' window "
+                                                        "[5, 3] s is empty in a run of 3 s"), res.output
 
 
 def test_a_world_too_extreme_to_build_is_one_line_at_validation(tmp_path):

@@ -243,7 +243,7 @@ def test_sweep_horizon_shorter_than_a_metric_window_is_one_line(tmp_path):
     res = CliRunner().invoke(app, ["sweep", "lmi_decay", "--config", str(OBSERVERS), "--n", "2", "--horizon", "3",
                                    "--out", str(tmp_path / "short"), "--quiet"])
     assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
-    assert "--horizon: 3 s: metrics.2: metric 'rmse_steady' window [5, 3] s is empty in a run of 3 s" in res.output
+    assert "--horizon: 3 s: metric 'rmse_steady' window [5, 3] s is empty in a run of 3 s (" in res.output
     assert not (tmp_path / "short").exists()
 
 

@@ -26,7 +26,7 @@ from pydantic import ValidationError
 from marinebench.config import MAX_SWEEP_N, Experiment, SweepSpec, Variant
 from marinebench.errors import ConfigError
 from marinebench.experiments.settings import MISSING, put_setting, setting_at, setting_path
-from marinebench.keypaths import did_you_mean, near_misses
+from marinebench.keypaths import did_you_mean, keyed_message, near_misses
 
 GRID_N = 11  # points per axis of a grid sweep (`sweep --grid`) unless --n says otherwise
 COMMAND_ARGS = {"params": "PARAM", "horizon": "--horizon", "grid": "--grid"}  # what the command's errors name
@@ -236,7 +236,7 @@ def _with_horizon(exp: Experiment, horizon: float, file: Path, arg: str) -> Any:
         return type(exp.scenario).model_validate(exp.scenario.model_dump() | {"horizon": horizon})
     except ValueError as exc:  # a metric window past the horizon, or the world's own checks (a ValidationError)
         msg = exc.errors()[0]["msg"].removeprefix("Value error, ") if isinstance(exc, ValidationError) else str(exc)
-        raise ConfigError(arg, "", f"{horizon:g} s: {msg.removeprefix('horizon|dt: ').removeprefix('dt|horizon: ')} ({file})") from None
+        raise ConfigError(arg, "", f"{horizon:g} s: {keyed_message(msg)[1]} ({file})") from None  # the key is --horizon
 
 
 def _checked_request(spec: SweepSpec, params: list[str], groups: list[str] | None, grid: bool, file: Path,
