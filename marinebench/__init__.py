@@ -129,7 +129,8 @@ def compare(baseline: str | Path, candidate: str | Path | None = None, *, varian
     as the same; ``paired=False``: independent samples (``--unpaired``); ``interval``: ``"bootstrap"`` or ``"t"``
     (``--interval``). Returns one row per cell (experiment, scenario, variant, signal, metric) with the two means, the
     change and its CI, and ``verdict`` (worse, missing, new, better, same), the most severe first: the gate fails
-    where ``(table.verdict == "worse").any()``. Unusable input raises :class:`marinebench.errors.MarinebenchError`
+    where ``(table.verdict == "worse").any()`` (the command's ``--strict``: ``table.verdict.isin(["worse",
+    "missing"]).any()``). Unusable input raises :class:`marinebench.errors.MarinebenchError`
     naming the folder or file; a bad argument, ValueError."""
     from marinebench.results.compare import Tolerance, compare_error, comparison
 
