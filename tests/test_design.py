@@ -110,8 +110,9 @@ def test_gains_do_not_depend_on_where_the_solver_stops(problem, monkeypatch, unc
     default = solve()
     monkeypatch.setattr(lmi, "SOLVER_OPTIONS", {"tol_gap_abs": 1e-11, "tol_gap_rel": 1e-11, "tol_feas": 1e-11, "max_iter": 1000})
     tight = solve()
-    big = np.abs(tight) > 1e-6 * np.abs(tight).max()  # the cross-axis entries of L_pz are zero up to rounding
-    np.testing.assert_allclose(default[big], tight[big], rtol=1e-3)
+    # the cross-axis entries of L_pz are zero to the solver's accuracy, about 1e-6 of the largest gain (8e-4 of
+    # 808 at 1e-11 with the floors' CLARABEL 0.7 on an AVX2 host): compared at 1e-5 of it, the others to 1e-3
+    np.testing.assert_allclose(default, tight, rtol=1e-3, atol=1e-5 * np.abs(tight).max())
 
 
 def test_frozen_heading_poles_equal_transformed_poles():
