@@ -513,8 +513,7 @@ def test_a_sweep_writes_the_same_metrics_csv_whatever_its_batches(tmp_path):
     for out, size in (("one", "300"), ("each", "1")):
         res = runner.invoke(app, [*args, "--chunk-size", size, "--out", str(tmp_path / out)])
         assert res.exit_code == 0, res.output
-    one, each = ((tmp_path / out).glob("*/metrics.csv") for out in ("one", "each"))
-    one, each = next(one), next(each)
+    one, each = (next((tmp_path / out).glob("*/metrics.csv")) for out in ("one", "each"))
     assert json.loads((each.parent / "manifest.json").read_text())["chunks"] == 4
     assert one.read_bytes() == each.read_bytes()
 
