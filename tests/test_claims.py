@@ -21,6 +21,7 @@ from marinebench.results.claims import (
     evaluate,
     manifest_entries,
     markdown,
+    ratio_of_means,
     summary_line,
 )
 
@@ -148,9 +149,9 @@ def test_multi_scenario_claims_check_where_their_variants_run():
 def test_bootstrap_interval_covers_the_ratio_and_needs_two_seeds():
     rng = np.random.default_rng(3)
     a, b = 1 + 0.1 * rng.standard_normal(30), 2 + 0.1 * rng.standard_normal(30)
-    lo, hi = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean())
+    lo, hi = bootstrap_ci([a, b], ratio_of_means)
     assert lo < a.mean() / b.mean() < hi and hi - lo < 0.05
-    assert bootstrap_ci([a[:1], b[:1]], lambda x, y: x.mean() / y.mean()) is None
+    assert bootstrap_ci([a[:1], b[:1]], ratio_of_means) is None
 
 
 def test_the_interval_of_a_mean_is_students_and_of_a_ratio_stays_positive():
@@ -162,25 +163,21 @@ def test_the_interval_of_a_mean_is_students_and_of_a_ratio_stays_positive():
         x = rng.normal(1.0, 0.2, n)
         for level in (0.95, 0.5):
             _, lo_t, hi_t = mean_ci(x, level)
-            lo, hi = bootstrap_ci([x], lambda v: v.mean(), level=level, n_boot=4000)
+            lo, hi = bootstrap_ci([x], lambda v: v.mean(axis=1), level=level, n_boot=4000)
             assert (hi - lo) / (hi_t - lo_t) == pytest.approx(1.0, abs=0.08 if n > 2 else 0.35), (n, level)
             assert (hi + lo) / 2 == pytest.approx(x.mean())
     a, b = np.array([0.3, 0.1, 0.2]), np.array([1.0, 0.2, 0.6])
-    lo, hi = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean(), scale="log")
+    lo, hi = bootstrap_ci([a, b], ratio_of_means, scale="log")
     ratio = a.mean() / b.mean()
     assert 0 < lo < ratio < hi and hi / ratio == pytest.approx(ratio / lo)  # symmetric in log
-    assert bootstrap_ci([np.array([0.9, 0.95, 1.0])], lambda v: v.mean(), bounds=(-1.0, 1.0))[1] == 1.0
+    assert bootstrap_ci([np.array([0.9, 0.95, 1.0])], lambda v: v.mean(axis=1), bounds=(-1.0, 1.0))[1] == 1.0
 
 
 def _percentile_ci(values, stat, n_boot, seed):
     """The plain percentile interval of the same resamples, for comparison."""
     n = len(values[0])
     idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-    return tuple(np.quantile([stat(*(v[i] for v in values)) for i in idx], (0.025, 0.975)))
-
-
-def _ratio_of_means(x, y):
-    return x.mean() / y.mean()
+    return tuple(np.quantile(stat(*(v[idx] for v in values)), (0.025, 0.975)))
 
 
 def coverage(seeds: int, draws: int = 600) -> tuple[float, float]:
@@ -192,9 +189,9 @@ def coverage(seeds: int, draws: int = 600) -> tuple[float, float]:
     for draw in range(draws):
         world = rng.normal(0.0, 0.5, seeds)
         a, b = 0.9 * np.exp(world + rng.normal(0.0, 0.3, seeds)), np.exp(world + rng.normal(0.0, 0.3, seeds))
-        lo, hi = bootstrap_ci([a, b], _ratio_of_means, n_boot=300, seed=draw, scale="log")
+        lo, hi = bootstrap_ci([a, b], ratio_of_means, n_boot=300, seed=draw, scale="log")
         hits += lo <= 0.9 <= hi
-        p_lo, p_hi = _percentile_ci([a, b], _ratio_of_means, 300, draw)
+        p_lo, p_hi = _percentile_ci([a, b], ratio_of_means, 300, draw)
         percentile_hits += p_lo <= 0.9 <= p_hi
     return hits / draws, percentile_hits / draws
 

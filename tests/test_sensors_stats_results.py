@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from marinebench.environment.signals import Constant, RandomSinusoid
 from marinebench.errors import ConfigError
 from marinebench.loading import apply_set
-from marinebench.metrics.stats import mean_ci
+from marinebench.metrics.stats import mean_ci, spearman_rows
 from marinebench.results import writer
 from marinebench.results.writer import atomic_directory, atomic_write_text
 from marinebench.scenario import stream_rngs
@@ -146,6 +146,26 @@ def test_mean_ci_coverage():
 def test_mean_ci_ignores_nan_and_single_value():
     m, lo, hi = mean_ci(np.array([1.0, np.nan]))
     assert m == 1.0 and np.isnan(lo) and np.isnan(hi)
+
+
+def test_spearman_rows_is_scipys_spearmanr_row_by_row():
+    """A trend claim's ρ and its bootstrap (experiments/curves.py): each row as scipy.stats.spearmanr gives it, with
+    ties (average ranks), and nan for a row holding a nan or constant (scipy warns and gives nan)."""
+    import warnings
+
+    from scipy.stats import spearmanr
+
+    rng = np.random.default_rng(4)
+    x = np.array([0.1, 0.3, 1.0, 2.0, 5.0, 10.0])
+    ys = np.vstack([rng.normal(size=(40, 6)), np.round(rng.normal(size=(20, 6))), x[::-1], x ** 2, np.full(6, 3.0),
+                    [1, 2, np.nan, 4, 5, 6]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        expected = np.array([spearmanr(x, y).statistic for y in ys])
+    ours = spearman_rows(x, ys)
+    np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=1e-15)
+    assert np.isnan(ours[-2:]).all() and ours[-4] == -1.0 and ours[-3] == 1.0
+    assert np.isfinite(ours[:-2]).all()
 
 
 def test_atomic_directory_keeps_old_results_on_failure(tmp_path):

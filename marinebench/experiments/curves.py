@@ -24,7 +24,7 @@ from scipy.stats import spearmanr
 from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.config import Experiment, SweepSpec
 from marinebench.experiments.settings import tuning
-from marinebench.metrics.stats import mean_ci
+from marinebench.metrics.stats import mean_ci, spearman_rows
 from marinebench.plotting.figures import plain_log_labels, save
 from marinebench.results.claims import Check, ClaimResult, Region, bootstrap_ci
 from marinebench.results.tables import simulated_on
@@ -259,7 +259,7 @@ def _variants_checks(claim: GroupsClaim, metrics: pd.DataFrame, metric: str, sig
 def _probe_check(claim: ProbeClaim, c: pd.DataFrame, log: bool, group: str, sig: str) -> Check:
     at, vs = _at(c, claim.at, log), _at(c, claim.vs, log)
     ratio = float(np.nanmean(at) / np.nanmean(vs))
-    ci = bootstrap_ci([at, vs], lambda x, y: np.nanmean(x) / np.nanmean(y), scale="log")
+    ci = bootstrap_ci([at, vs], lambda x, y: np.nanmean(x, axis=1) / np.nanmean(y, axis=1), scale="log")
     means = {f"{claim.param}={claim.at:g}": float(np.nanmean(at)), f"{claim.param}={claim.vs:g}": float(np.nanmean(vs))}
     region = Region(-np.inf, claim.factor)
     return Check(group, sig, means, ratio, ci, f"< {claim.factor:g}", ratio in region, region)
@@ -269,11 +269,12 @@ def _trend_check(claim: TrendClaim, c: pd.DataFrame, log: bool, group: str, sig:
     x = c.index.to_numpy(dtype=float)
     inside = (x >= claim.range[0]) & (x <= claim.range[1])
 
-    def rho(per_seed: np.ndarray) -> float:  # rows: seeds, columns: the points inside the range
-        return float(spearmanr(x[inside], np.nanmean(per_seed, axis=0)).statistic) if inside.sum() > 2 else np.nan
+    def rho(per_seed: np.ndarray) -> np.ndarray:  # (resamples, seeds, the points inside the range) -> (resamples,)
+        curves = np.nanmean(per_seed, axis=1)
+        return spearman_rows(x[inside], curves) if inside.sum() > 2 else np.full(len(curves), np.nan)
 
     values = c.to_numpy(dtype=float).T[:, inside]
-    r = rho(values)
+    r = float(rho(values[None])[0])
     sign = -1.0 if claim.decreasing else 1.0
     means = {f"{claim.param}={v:g}": float(np.nanmean(_at(c, v, log))) for v in claim.range}
     needs = f"{'<' if claim.decreasing else '>'} {sign * claim.min_rho:+g} (Spearman ρ)"
@@ -290,11 +291,12 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
     a, b = above[seeds].to_numpy(dtype=float).T, below[seeds].to_numpy(dtype=float).T  # rows: seeds
 
     def curve(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # the ratio of the mean curves, point by point
-        return np.nanmean(x, axis=0) / np.nanmean(y, axis=0)
+        return np.nanmean(x, axis=-2) / np.nanmean(y, axis=-2)
 
-    def lowest(x: np.ndarray, y: np.ndarray) -> float:  # nan (the check fails) where every run diverged
+    def lowest(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # per resample; nan (the check fails) where every run diverged
         r = curve(x, y)
-        return float(np.nanmin(r)) if not np.isnan(r).all() else np.nan
+        diverged = np.isnan(r).all(axis=1)
+        return np.where(diverged, np.nan, np.nanmin(np.where(diverged[:, None], 0.0, r), axis=1))
 
     ratios = curve(a, b)
     i = int(np.nanargmin(ratios)) if not np.isnan(ratios).all() else 0

@@ -20,6 +20,20 @@ def diverged_runs_quiet() -> Iterator[None]:
         yield
 
 
+def spearman_rows(x: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Spearman's rank correlation of ``x`` ``(k,)`` with each row of ``ys`` ``(B, k)``, ``(B,)``: the Pearson
+    correlation of their average ranks, as ``scipy.stats.spearmanr`` gives it for one row (to rounding), for every
+    row at once (a trend claim's bootstrap asks for thousands). nan where a row holds a nan or is constant."""
+    ys = np.asarray(ys, dtype=float)
+    missing = np.isnan(ys).any(axis=1)
+    rx = stats.rankdata(x)
+    ry = stats.rankdata(np.where(missing[:, None], 0.0, ys), axis=1)
+    dx, dy = rx - rx.mean(), ry - ry.mean(axis=1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.clip((dy @ dx) / np.sqrt((dx @ dx) * np.einsum("ij,ij->i", dy, dy)), -1.0, 1.0)
+    return np.where(missing, np.nan, rho)
+
+
 @lru_cache(maxsize=256)
 def _t_quantile(q: float, dof: int) -> float:
     """Student-t quantile (cached: a sweep's summary asks for the same few thousands of times)."""

@@ -100,9 +100,16 @@ def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, m
 def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: float = 0.95, n_boot: int = 2000,
                  seed: int = 0, scale: Literal["linear", "log"] = "linear",
                  bounds: tuple[float, float] = (-math.inf, math.inf)) -> tuple[float, float] | None:
-    """Interval of ``stat(*values)`` over seeds: the statistic ± the Student-t quantile (n − 1 degrees of freedom)
-    times its bootstrap standard error, the seeds (rows, aligned across ``values``) resampled together and the
-    spread of the resampled statistic scaled by sqrt(n / (n − 1)) (a resample's plug-in bias).
+    """Interval of the statistic ``stat`` over seeds: the statistic ± the Student-t quantile (n − 1 degrees of
+    freedom) times its bootstrap standard error, the seeds (rows, aligned across ``values``) resampled together and
+    the spread of the resampled statistic scaled by sqrt(n / (n − 1)) (a resample's plug-in bias).
+
+    ``stat`` takes every resample at once: each of ``values`` with a leading axis of resamples (``(n_boot, n, ...)``
+    for a value of shape ``(n, ...)``; the statistic itself is that of the one "resample" ``values[None]``), and
+    returns one statistic per resample (``(n_boot,)``), e.g. ``lambda x, y: x.mean(axis=1) / y.mean(axis=1)``. A
+    reduction over the seeds of one resample is the same floating-point sum as over the seeds themselves, so the
+    interval is that of a statistic taken resample by resample, at a small fraction of the cost (the claims of a
+    sweep check thousands of resamples at each of hundreds of points).
 
     ``scale="log"`` (a ratio of means): the interval of the statistic's log, mapped back, so that it stays positive
     and is as asymmetric as a ratio's (linear when the statistic or a resample is not positive). ``bounds`` clips
@@ -115,9 +122,9 @@ def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: fl
     if n < 2:
         return None
     with np.errstate(divide="ignore", invalid="ignore"):  # a zero mean makes the statistic infinite or nan
-        estimate = float(stat(*values))
+        estimate = float(stat(*(v[None] for v in values))[0])
         idx = np.random.default_rng(seed).integers(0, n, size=(n_boot, n))
-        draws = np.array([stat(*(v[i] for v in values)) for i in idx], dtype=float)
+        draws = np.asarray(stat(*(v[idx] for v in values)), dtype=float)
     draws = draws[np.isfinite(draws)]
     if not math.isfinite(estimate) or draws.size < 2:
         return None
@@ -128,6 +135,17 @@ def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: fl
     half = float(student_t.ppf(0.5 + level / 2, n - 1) * spread * math.sqrt(n / (n - 1)))
     lo, hi = (math.exp(centre - half), math.exp(centre + half)) if log else (centre - half, centre + half)
     return max(lo, bounds[0]), min(hi, bounds[1])
+
+
+def ratio_of_means(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`bootstrap_ci`'s statistic for ``less``, ``order`` and ``within`` (rtol): mean(x) / mean(y) per resample."""
+    return x.mean(axis=1) / y.mean(axis=1)
+
+
+def _largest_over_smallest_mean(*xs: np.ndarray) -> np.ndarray:
+    """:func:`bootstrap_ci`'s statistic for ``within`` (factor): the largest variant mean over the smallest."""
+    means = np.stack([x.mean(axis=1) for x in xs])
+    return means.max(axis=0) / means.min(axis=0)
 
 
 def _ratio(a: float, b: float) -> float:
@@ -215,7 +233,7 @@ def _ratio_checks(cell: _Cell, pairs: list[tuple[str, str]], factor: float) -> l
     for lo, hi in pairs:
         a, b = _aligned([cell.series[lo], cell.series[hi]])
         ratio = _ratio(means[lo], means[hi])
-        ci = bootstrap_ci([a, b], lambda x, y: x.mean() / y.mean(), scale="log")
+        ci = bootstrap_ci([a, b], ratio_of_means, scale="log")
         out.append(cell.check(ratio, ci, f"< {factor:g}", Region(-math.inf, factor), [lo, hi]))
     return out
 
@@ -226,14 +244,13 @@ def _within_checks(cell: _Cell, claim: WithinClaim, variants: list[str]) -> list
     means = cell.means
     if claim.factor is not None:
         ratio = _ratio(max(means.values()), min(means.values()))
-        ci = bootstrap_ci(_aligned(list(cell.series.values())),
-                          lambda *xs: max(x.mean() for x in xs) / min(x.mean() for x in xs), scale="log")
+        ci = bootstrap_ci(_aligned(list(cell.series.values())), _largest_over_smallest_mean, scale="log")
         return [cell.check(ratio, ci, f"≤ {claim.factor:g}", Region(-math.inf, claim.factor, closed=True), variants)]
     first, out = variants[0], []
     for other in variants[1:]:
         x, y = _aligned([cell.series[other], cell.series[first]])
         ratio = _ratio(means[other], means[first])
-        ci = bootstrap_ci([x, y], lambda p, q: p.mean() / q.mean(), scale="log")
+        ci = bootstrap_ci([x, y], ratio_of_means, scale="log")
         out.append(cell.check(ratio, ci, f"within 1 ± {claim.rtol:g}", Region(1 - claim.rtol, 1 + claim.rtol, closed=True),
                               [first, other]))
     return out
@@ -249,7 +266,8 @@ def _near_paper_checks(exp, cell: _Cell, claim: NearPaperClaim, variants: list[s
         d = exp.table.display.get(f"{metric}/{cell.signal}")
         scale = d.scale if d is not None else 1.0
         ratio = means[v] * scale / paper
-        ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean() * k / p, scale="log")
+        ci = bootstrap_ci([cell.series[v].to_numpy()], lambda x, p=paper, k=scale: x.mean(axis=1) * k / p,
+                          scale="log")
         region = Region(1 / claim.factor, claim.factor, closed=True)
         out.append(Check(cell.scenario, cell.signal, {v: means[v], "paper": paper / scale}, ratio, ci,
                          f"in [{region.lo:.3g}, {region.hi:g}]", ratio in region, region))
