@@ -103,8 +103,9 @@ def sweep(
         claims_verdict(require_claims, known)
         return
     t0 = _time.perf_counter()
-    metrics, summed, ran, wall, executor = _simulate_sweep(exp, config, target, chunk_size, dask, workers, jobs, quiet)
     chunks = len(chunks_of(exp, chunk_size))
+    metrics, summed, ran, wall, executor = _simulate_sweep(exp, config, target, chunk_size, chunks, dask, workers, jobs,
+                                                           quiet)
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
@@ -169,20 +170,20 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
     return base, exp, params
 
 
-def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str | None, workers: int | None, jobs: int,
-                    quiet: bool) -> tuple:
-    """sweep: simulate the points in batches of ``chunk_size`` (in this process, local worker processes or on
-    Dask) under a progress bar; returns (metrics, batch seconds summed, batches run, wall seconds, executor). An
+def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, chunks: int, dask: str | None, workers: int | None,
+                    jobs: int, quiet: bool) -> tuple:
+    """sweep: simulate the points in ``chunks`` batches of ``chunk_size`` (in this process, local worker processes or
+    on Dask) under a progress bar; returns (metrics, batch seconds summed, batches run, wall seconds, executor). An
     interruption exits, keeping the finished batches for the same command to resume from; a class of the user's
     failing in this process is one line naming ``config``, as in ``run``."""
     import time as _time
     from contextlib import nullcontext
 
-    from marinebench.experiments.chunks import chunks_of, finished_chunks, partial_dir, run_chunked
+    from marinebench.experiments.chunks import finished_chunks, partial_dir, run_chunked
     from marinebench.experiments.cluster import available_cores, dask_pool, local_pool
     from marinebench.results.writer import output_folder
 
-    jobs = min(jobs or available_cores(), len(chunks_of(exp, chunk_size)))
+    jobs = min(jobs or available_cores(), chunks)
     # the pool first: local workers are forked before the progress bar starts its thread
     where = dask_pool(dask, workers) if dask else local_pool(jobs) if jobs > 1 else nullcontext()
     try:
@@ -199,7 +200,7 @@ def _simulate_sweep(exp, config: Path, target: Path, chunk_size: int, dask: str 
             wall = _time.perf_counter() - t_sim
             bar.update(task, completed=bar.tasks[0].total)
     except KeyboardInterrupt as exc:
-        interrupted(f"{finished_chunks(target)} of {len(chunks_of(exp, chunk_size))} batch(es) finished and kept in {partial_dir(target)}; "
+        interrupted(f"{finished_chunks(target)} of {chunks} batch(es) finished and kept in {partial_dir(target)}; "
                      "the same command resumes from them", exc)
     return metrics, summed, ran, wall, executor
 
