@@ -30,14 +30,14 @@ STEADY_ASV = {
 # The same vessel going straight (no torque, no environment): the NED bias the DP observers model is then constant
 # once the surge has settled (in a steady turn it would rotate with the heading, which model (41) does not allow).
 STRAIGHT_ASV = {
-    "kind": "open_loop_asv", "name": "straight", "horizon": 120.0, "dt": 0.01,
+    "kind": "open_loop_asv", "name": "straight", "horizon": 80.0, "dt": 0.01,
     "inputs": {"F_u": {**CONSTANT, "value": 3.0}, "tau_r": {**CONSTANT, "value": 0.0}},
     "disturbances": {"F_wu": {**CONSTANT, "value": 0.0}, "F_wv": {**CONSTANT, "value": 0.0},
                      "tau_wr": {**CONSTANT, "value": 0.0}},
 }
 # Torben's sway impulse without waves, sensor errors, notch or model mismatch: the bias is constant after
 # the impulse.
-CLEAN_DP = {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"), "horizon": 600.0, "waves": None,
+CLEAN_DP = {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"), "horizon": 400.0, "waves": None,
             "vessel": {"kind": "supply_dp_linear"}, "design_vessel": None,
             "sensors": {"gnss_sigma": 0.0, "heading_sigma_deg": 0.0, "notch": False}}
 # The ROV holding a pose with exact samples; the observers start 5 cm and 10 deg off.
@@ -54,15 +54,15 @@ EARTH_ESO = {"source": f"{ROOT / 'examples' / 'custom_observer' / 'earth_eso.py'
 CASES = [
     ("liu_eso", STEADY_ASV, [{"eps": 0.1}, {"eps": 0.1, "mode": "fal"}], (0.0, 5.0), (35.0, None)),
     ("bejarano", STEADY_ASV, [{"delta_psi1": 1.0, "delta_p1": 1.0, "k_n": 1}, {}], (0.0, 5.0), (35.0, None)),
-    ("npo", STRAIGHT_ASV, [{"bias_units": "force", "moment_arm": "L"}], (0.0, 10.0), (100.0, None)),
+    ("npo", STRAIGHT_ASV, [{"bias_units": "force", "moment_arm": "L"}], (0.0, 10.0), (70.0, None)),
     ("resetting_fto", STRAIGHT_ASV, [{"bias_units": "force", "moment_arm": "L", "delta": 0.32, "eps": [0.2, 0.2, 0.02]}],
-     (0.0, 10.0), (100.0, None)),
-    ("npo", CLEAN_DP, [DP_UNITS], (0.0, 200.0), (550.0, None)),
-    ("resetting_fto", CLEAN_DP, [{**DP_UNITS, "q2_scale": 1.0e8}], (0.0, 200.0), (550.0, None)),
-    ("liu_eso", CLEAN_DP, [{"eps": 0.2}], (0.0, 200.0), (550.0, None)),
-    ("bejarano", CLEAN_DP, [{"delta_psi1": 1.2, "delta_p1": 1.2}], (0.0, 200.0), (550.0, None)),
-    ("custom", STRAIGHT_ASV, [{**EARTH_ESO, "params": {"omega": 10.0}}], (0.0, 10.0), (100.0, None)),
-    ("custom", CLEAN_DP, [{**EARTH_ESO, "params": {"omega": 5.0}}], (0.0, 200.0), (550.0, None)),
+     (0.0, 10.0), (70.0, None)),
+    ("npo", CLEAN_DP, [DP_UNITS], (0.0, 200.0), (350.0, None)),
+    ("resetting_fto", CLEAN_DP, [{**DP_UNITS, "q2_scale": 1.0e8}], (0.0, 200.0), (350.0, None)),
+    ("liu_eso", CLEAN_DP, [{"eps": 0.2}], (0.0, 200.0), (350.0, None)),
+    ("bejarano", CLEAN_DP, [{"delta_psi1": 1.2, "delta_p1": 1.2}], (0.0, 200.0), (350.0, None)),
+    ("custom", STRAIGHT_ASV, [{**EARTH_ESO, "params": {"omega": 10.0}}], (0.0, 10.0), (70.0, None)),
+    ("custom", CLEAN_DP, [{**EARTH_ESO, "params": {"omega": 5.0}}], (0.0, 200.0), (350.0, None)),
     ("cdo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
     ("eo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
 ]
