@@ -76,9 +76,9 @@ def test_a_continuous_eso_on_held_samples_under_reads_a_steady_drift(feed, worst
         assert -0.02 < error < -0.012
 
 
-def cross_experiment(tmp_path, **over):
+def cross_experiment(tmp_path, horizon: float = 120.0, **over):
     doc = {"from": str(CROSS), "seeds": 1, "figures": [], "sweep": None, "scenario": {"from": str(ROOT / "scenarios" / "dp_impulse.yaml"),
-           "dt": 0.01, "horizon": 120.0, "waves": None}, **over}
+           "dt": 0.01, "horizon": horizon, "waves": None}, **over}
     path = tmp_path / "cross.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     exp, _ = load_experiment(path)
@@ -103,7 +103,7 @@ def test_each_observer_kind_reports_the_signals_it_estimates(tmp_path):
 
 def test_dp_observers_report_sigma_only_when_asked(tmp_path):
     """Torben's experiments ask for no sigma: no sigma rows, no sigma truth (no extra plant evaluation)."""
-    exp, _ = cross_experiment(tmp_path, variants=[{"name": "npo", "observer": {"kind": "npo"}}],
+    exp, _ = cross_experiment(tmp_path, horizon=10.0, variants=[{"name": "npo", "observer": {"kind": "npo"}}],
                               metrics=[{"kind": "rmse", "t_start": 0.0, "signals": ["v"]}], table=None)
     assert not wants_lumped(exp)
     m = run(exp, traces=False).metrics
