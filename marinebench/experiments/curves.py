@@ -19,7 +19,6 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from scipy.stats import spearmanr
 
 from marinebench.claims import GroupsClaim, ProbeClaim, TrendClaim
 from marinebench.config import Experiment, SweepSpec
@@ -145,7 +144,7 @@ def _trend_section(curves: Curves, spec: SweepSpec, group: str) -> list[str]:
             continue
         x = c.index.to_numpy(dtype=float)
         inside = (x >= ps.trend[0]) & (x <= ps.trend[1])
-        rho = spearmanr(x[inside], c.mean(axis=1).to_numpy()[inside]).statistic if inside.sum() > 2 else np.nan
+        rho = spearman_rows(x[inside], c.mean(axis=1).to_numpy()[None, inside])[0] if inside.sum() > 2 else np.nan
         rho = f"{rho:+.2f}" if np.isfinite(rho) else "–"  # too few points, or every run diverged
         rows.append(f"| {p} | {g} | {sig} | [{ps.trend[0]:g}, {ps.trend[1]:g}] | {int(inside.sum())} | {rho} |")
     if not rows:
@@ -294,9 +293,7 @@ def _groups_check(claim: GroupsClaim, above: pd.DataFrame, below: pd.DataFrame, 
         return np.nanmean(x, axis=-2) / np.nanmean(y, axis=-2)
 
     def lowest(x: np.ndarray, y: np.ndarray) -> np.ndarray:  # per resample; nan (the check fails) where every run diverged
-        r = curve(x, y)
-        diverged = np.isnan(r).all(axis=1)
-        return np.where(diverged, np.nan, np.nanmin(np.where(diverged[:, None], 0.0, r), axis=1))
+        return np.nanmin(curve(x, y), axis=1)
 
     ratios = curve(a, b)
     i = int(np.nanargmin(ratios)) if not np.isnan(ratios).all() else 0

@@ -97,7 +97,7 @@ def _per_seed(metrics: pd.DataFrame, scenario: str, variant: str, signal: str, m
     return sel.set_index("seed")["value"].astype(float)
 
 
-def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., float], level: float = 0.95, n_boot: int = 2000,
+def bootstrap_ci(values: list[np.ndarray], stat: Callable[..., np.ndarray], level: float = 0.95, n_boot: int = 2000,
                  seed: int = 0, scale: Literal["linear", "log"] = "linear",
                  bounds: tuple[float, float] = (-math.inf, math.inf)) -> tuple[float, float] | None:
     """Interval of the statistic ``stat`` over seeds: the statistic ± the Student-t quantile (n − 1 degrees of
