@@ -416,7 +416,7 @@ class Experiment(BaseModel):
     @model_validator(mode="after")
     def _cross_references(self) -> Experiment:
         if (self.scenario is None) == (self.scenarios is None):
-            raise ValueError("give exactly one of 'scenario' or 'scenarios'")
+            raise ValueError("scenario|scenarios: give exactly one of 'scenario' or 'scenarios'")
         self._fill_signals()
         self._fill_sweep()
         checked = self._check_study() if self.scenarios is not None else self._check_single()

@@ -91,9 +91,26 @@ def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError
 
 
 def source_digest(source: str) -> str | None:
-    """SHA-256 of a ``.py`` source file (None for a module: its package version is what identifies it)."""
+    """SHA-256 of the file that defines the class: the ``.py`` source, or a module source's own file (its
+    ``__spec__.origin``, e.g. ``site-packages/lab/observers.py``), so that the manifest names the code that ran and
+    ``run --resume`` and a sweep's finished batches go stale when it is edited. Like a ``.py`` source, only that one
+    file is hashed, not what it imports. None for a module without a file of its own (a namespace package)."""
     where, _ = split_source(source)
-    return hashlib.sha256(Path(where).read_bytes()).hexdigest() if where.endswith(".py") else None
+    if not where.endswith(".py"):
+        where = _module_file(where)
+        if where is None:
+            return None
+    return hashlib.sha256(Path(where).read_bytes()).hexdigest()
+
+
+def _module_file(name: str) -> str | None:
+    """The file a module is loaded from (it has been imported when its class was checked), or None."""
+    try:
+        spec = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        return None
+    origin = getattr(spec, "origin", None)
+    return origin if spec is not None and spec.has_location and origin and Path(origin).is_file() else None
 
 
 def resolve_source(source: Any, base: Path) -> Any:

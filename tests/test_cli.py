@@ -230,6 +230,17 @@ BAD = {
     "sweep_claim_metric": (lambda d: d.update(sweep={"params": {"eps": {"key": "eps", "range": [0.1, 1.0]}}, "claims": [
                                {"kind": "trend", "param": "eps", "range": [0.1, 1.0], "metric": "rmse", "text": "t"}]}),
                            "sweep.claims.0: metric 'rmse' is not among the sweep's metrics ['std']"),
+    # checks across keys that had no test of their own (found by a line-coverage pass)
+    "no_world": (lambda d: d.pop("scenario"), ": scenario: give exactly one of 'scenario' or 'scenarios'"),
+    "two_kinds_of_world": (lambda d: d.update(scenarios={"a": d["scenario"]}),
+                           ": scenario: give exactly one of 'scenario' or 'scenarios'"),
+    "table_relative_unknown": (lambda d: d["table"].update(relative=["liu_eps0.2", "nope"]),
+                               ": table.relative: unknown variants ['nope']"),
+    "no_observer": (lambda d: d["variants"][0].pop("observer"), ": variants.0: give an 'observer' or a 'controller'"),
+    "closed_loop_through_liu": (lambda d: d["variants"][0].update(controller={"kind": "rise"}),
+                                ": variants.0: a closed-loop variant can be observed through 'cdo' or 'eo', not 'liu_eso'"),
+    "scenario_from_not_a_path": (lambda d: d["scenario"].update({"from": 3}), ": scenario.from: expected a file path"),
+    "experiment_from_not_a_path": (lambda d: d.update({"from": 3}), ": from: expected a path to the experiment file"),
 }
 
 
@@ -263,6 +274,30 @@ def test_invalid_yaml(tmp_path):
     bad.write_text("variants: [\n  name: x\n")
     res = runner.invoke(app, ["validate", str(bad)])
     assert res.exit_code == 2 and "broken.yaml: invalid YAML: line 3" in res.output
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("- liu_eps0.2\n- proposed_d1.2\n", "expected a mapping at the top level"),  # a list, not a mapping
+    ("", "expected a mapping at the top level"),  # an empty file
+    (None, "cannot read (Is a directory)"),  # e.g. a folder named like a config
+])
+def test_a_config_that_is_no_mapping_or_no_file_is_one_line(text, expected, tmp_path):
+    path = tmp_path / "config.yaml"
+    path.mkdir() if text is None else path.write_text(text)
+    for command in (["validate", str(path)], ["run", str(path), "--out", str(tmp_path / "out"), "--quiet"]):
+        res = runner.invoke(app, command)
+        assert res.exit_code == 2 and res.output.strip() == f"error: {path}: {expected}", res.output
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("dotted, expected", [
+    ("variants[nope].observer.eps=1", "variants[nope].observer.eps: no item named 'nope'"),
+    ("seeds[x]=1", "seeds[x]: '[x]' selects from a list, found int"),
+    ("variants.0[liu].eps=1", "variants.0[liu].eps: '[liu]' selects from a list, found dict"),
+])
+def test_a_set_selecting_by_name_where_there_is_no_such_list_item_is_one_line(dotted, expected, tiny_config):
+    res = runner.invoke(app, ["validate", str(tiny_config), "--set", dotted])
+    assert res.exit_code == 2 and res.output.strip() == f"error: --set: {expected}", res.output
 
 
 def test_a_file_that_is_not_utf8_is_one_line(tmp_path):

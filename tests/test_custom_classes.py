@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 
 import pandas as pd
 import pytest
@@ -46,6 +47,60 @@ def test_example_runs_beside_liu_and_records_its_source(example, tmp_path, monke
     source = example.parent / "earth_eso.py"
     assert design["source"] == f"{source.resolve()}:EarthFrameEso" and design["params"] == {"omega": 5.0}
     assert design["sha256"] == hashlib.sha256(source.read_bytes()).hexdigest()
+
+
+@pytest.fixture
+def as_module(example, tmp_path, monkeypatch):
+    """The example's class file as module ``<package>.eso`` of a package on sys.path (a name of its own per test:
+    Python keeps an imported module for the process), and the config naming it by module, not by file."""
+    package = f"lab_{hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]}"
+    (tmp_path / "site" / package).mkdir(parents=True)
+    (tmp_path / "site" / package / "__init__.py").write_text("")
+    module = tmp_path / "site" / package / "eso.py"
+    shutil.copy(example.parent / "earth_eso.py", module)
+    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    example.write_text(example.read_text().replace("source: earth_eso.py:", f"source: {package}.eso:"))
+    yield example, module, f"{package}.eso:EarthFrameEso"
+    for name in (package, f"{package}.eso"):
+        sys.modules.pop(name, None)
+
+
+def test_a_module_source_runs_and_the_manifest_and_resume_key_name_its_file(as_module, tmp_path):
+    """``package.module:Class`` is imported by name; its own file is what the manifest's sha256 and the resume key
+    (provenance.inputs_key) hash, as for a ``.py`` source: an edited module makes the previous results stale."""
+    from marinebench.loading import load_experiment
+    from marinebench.provenance import custom_sources, inputs_key
+
+    example, module, source = as_module
+    res = runner.invoke(app, ["run", str(example), "--set", "scenario.horizon=6", "--seeds", "1",
+                              "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    design = json.loads((tmp_path / "out" / "earth_eso" / "manifest.json").read_text())["designs"]["earth_eso_w5"]
+    assert design["source"] == source and design["sha256"] == hashlib.sha256(module.read_bytes()).hexdigest()
+    exp, _ = load_experiment(example)
+    assert custom_sources(exp) == [source]
+    before = inputs_key(exp)
+    module.write_text(module.read_text() + "\n# edited\n")
+    assert inputs_key(exp) != before
+
+
+def test_a_source_that_cannot_be_imported_is_one_line_naming_file_and_key(example, tmp_path):
+    """A module that is not there, or a class file raising as it is imported: one line, exit 2, nothing written, and
+    the half-imported file is not left behind in sys.modules."""
+    broken = example.parent / "broken.py"
+    broken.write_text("raise RuntimeError('no licence for this observer')\n")
+    for source, message in (
+        ("nosuch_lab.eso:EarthFrameEso",
+         "cannot import module 'nosuch_lab.eso' (ModuleNotFoundError: No module named 'nosuch_lab')"),
+        ("broken.py:EarthFrameEso", f"{broken.resolve()}: cannot import (RuntimeError: no licence for this observer)"),
+    ):
+        config = example.parent / "edited.yaml"
+        config.write_text(example.read_text().replace("source: earth_eso.py:EarthFrameEso", f"source: {source}", 1))
+        res = runner.invoke(app, ["run", str(config), "--out", str(tmp_path / "out"), "--quiet"])
+        assert res.exit_code == 2 and res.output.strip() == (
+            f"error: {config}: variants.2.observer.source: {message}"), res.output
+        assert not (tmp_path / "out").exists()
+    assert "marinebench_user_" + hashlib.sha1(str(broken.resolve()).encode()).hexdigest()[:12] not in sys.modules
 
 
 def test_a_custom_observer_parameter_sweeps_like_any_other(example, tmp_path):
