@@ -8,10 +8,12 @@ with a one-line reason, so config validation reports it with the file and key.
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import importlib.util
 import sys
+import sysconfig
 import traceback
 from collections.abc import Iterable
 from pathlib import Path
@@ -70,18 +72,12 @@ def user_class(source: str, members: Iterable[str]) -> type:
 
 def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError | None:
     """``exc``, raised while the runs were simulated, as one line naming where in a class of your own (one of
-    ``sources``) it was raised: its file, line and member (None when no frame of its traceback is in one of their
-    files, e.g. an engine error), or, for a :class:`ProtocolError` (an answer outside the protocol), what was wrong.
+    ``sources``) it was raised: its file, line and member, or those of a file of your own it imports (None when no
+    frame of its traceback is in one of their :func:`source_files`, e.g. an engine error), or, for a :class:`ProtocolError` (an answer outside the protocol), what was wrong.
     The class was checked at validation; this is what it did later."""
     if isinstance(exc, ProtocolError):
         return UserCodeError(f"{exc} (a class of your own, while the runs were simulated)")
-    files = set()
-    for source in sources:
-        where, _ = split_source(source)
-        module = None if where.endswith(".py") else sys.modules.get(where)
-        path = where if module is None else getattr(module, "__file__", None)
-        if path:
-            files.add(Path(path).resolve())
+    files = {path for source in sources for path in source_files(source)}
     frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename).resolve() in files]
     if not frames:
         return None
@@ -91,26 +87,116 @@ def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError
 
 
 def source_digest(source: str) -> str | None:
-    """SHA-256 of the file that defines the class: the ``.py`` source, or a module source's own file (its
-    ``__spec__.origin``, e.g. ``site-packages/lab/observers.py``), so that the manifest names the code that ran and
-    ``run --resume`` and a sweep's finished batches go stale when it is edited. Like a ``.py`` source, only that one
-    file is hashed, not what it imports. None for a module without a file of its own (a namespace package)."""
+    """SHA-256 of the file that defines the class (the first of :func:`source_files`): the ``.py`` source, or a
+    module source's own file (e.g. ``site-packages/lab/observers.py``); None for a module without a file (a
+    namespace package)."""
+    files = source_files(source)
+    return file_digest(files[0]) if files else None
+
+
+def imported_digests(source: str) -> dict[str, str]:
+    """SHA-256 of each file of your own code that the class's file imports (the rest of :func:`source_files`),
+    named relative to its package's parent folder (``lab/gains.py``) or to the source's folder (``helpers.py``)."""
+    files = source_files(source)
+    if not files:
+        return {}
+    root, _ = _own_code_root(source, files[0])
+    return {path.relative_to(root).as_posix(): file_digest(path) for path in files[1:]}
+
+
+def file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def source_files(source: str) -> list[Path]:
+    """The files a class of your own is computed by: the one that defines it, then (sorted) every file of your own
+    code it imports, directly or through one another, so that the manifest names the code that ran and ``run
+    --resume`` and a sweep's finished batches go stale when any of them is edited.
+
+    Your own code is what lies in the class's top-level package (``lab/`` for ``lab.observers.eso:Class``), or,
+    for a ``.py`` source or a module outside any package, in its folder and below, less the interpreter's library
+    and installed packages (``site-packages``). marinebench itself is never followed: its code is in every
+    manifest's ``source_digest``. The imports are read from the files (``ast``), not run, so one inside a function
+    or under a condition counts as well; a name that is not found (or would import a package that its class did
+    not) is skipped. Empty for a module without a file of its own (a namespace package)."""
     where, _ = split_source(source)
-    if not where.endswith(".py"):
-        where = _module_file(where)
-        if where is None:
-            return None
-    return hashlib.sha256(Path(where).read_bytes()).hexdigest()
+    first = Path(where).resolve() if where.endswith(".py") else _module_file(where, may_import=True)
+    if first is None:
+        return []
+    _, follows = _own_code_root(source, first)
+    found, todo = {first}, [(first, None if where.endswith(".py") else _package_of(where, first))]
+    while todo:
+        path, package = todo.pop()
+        for name in _imported_names(path, package):
+            file = _module_file(name)
+            if file is not None and file not in found and follows(file):
+                found.add(file)
+                todo.append((file, _package_of(name, file)))
+    return [first, *sorted(found - {first})]
 
 
-def _module_file(name: str) -> str | None:
-    """The file a module is loaded from (it has been imported when its class was checked), or None."""
+def _own_code_root(source: str, first: Path):
+    """(the folder imported files are named relative to, whether a file is your own code) for ``source``."""
+    where, _ = split_source(source)
+    top = None if where.endswith(".py") else sys.modules.get(where.partition(".")[0])
+    locations = list(getattr(getattr(top, "__spec__", None), "submodule_search_locations", None) or [])
+    if len(locations) == 1:  # a regular package: all of it is yours
+        package = Path(locations[0]).resolve()
+        return package.parent, lambda file: file.is_relative_to(package)
+    folder = first.parent
+    others = [Path(sysconfig.get_path(key)).resolve() for key in ("stdlib", "platstdlib", "purelib", "platlib")]
+    others.append(Path(__file__).resolve().parent)  # marinebench
+    return folder, lambda file: file.is_relative_to(folder) and not any(file.is_relative_to(o) for o in others)
+
+
+def _package_of(name: str, file: Path) -> str:
+    """The package a module's relative imports start from."""
+    return name if file.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def _imported_names(path: Path, package: str | None) -> list[str]:
+    """Every module name an import statement of the file names (with its parent packages, and ``from a import b``'s
+    ``a.b``, which may be a module), relative imports resolved against ``package`` (skipped without one)."""
     try:
-        spec = importlib.util.find_spec(name)
-    except (ImportError, ValueError):
-        return None
+        tree = ast.parse(path.read_bytes(), filename=str(path))
+    except (SyntaxError, ValueError, OSError):
+        return []
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                if not package:
+                    continue
+                try:
+                    base = importlib.util.resolve_name("." * node.level + base, package)
+                except (ImportError, ValueError):
+                    continue
+            names += [base, *(f"{base}.{alias.name}" for alias in node.names if alias.name != "*")]
+    parts = (name.split(".") for name in names if name)
+    return list(dict.fromkeys(".".join(p[: i + 1]) for p in parts for i in range(len(p))))
+
+
+def _module_file(name: str, may_import: bool = False) -> Path | None:
+    """The file module ``name`` is (or would be) loaded from, or None: from ``sys.modules`` if it was imported, else
+    looked up, which imports its parent packages if ``may_import`` (a class's own module, imported anyway) and
+    otherwise is not done when they are not imported yet (an import the class's own did not make)."""
+    module = sys.modules.get(name)
+    spec = getattr(module, "__spec__", None)
+    if module is None:
+        parent = name.rpartition(".")[0]
+        if parent and parent not in sys.modules and not may_import:
+            return None
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            return None
     origin = getattr(spec, "origin", None)
-    return origin if spec is not None and spec.has_location and origin and Path(origin).is_file() else None
+    if spec is None or not spec.has_location or not origin or not Path(origin).is_file():
+        return None
+    return Path(origin).resolve()
 
 
 def resolve_source(source: Any, base: Path) -> Any:

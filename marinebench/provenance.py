@@ -2,9 +2,9 @@
 still current, and whether Dask workers run the same code.
 
 :func:`inputs_key` covers the resolved experiment (seeds, every default filled in), the marinebench code,
-the versions of the numerical packages and the files of ``kind: custom`` classes. ``marinebench run
---resume`` skips an experiment whose ``manifest.json`` has the same key; an interrupted sweep reuses its
-finished batches only under the same key.
+the versions of the numerical packages and the files of ``kind: custom`` classes (each class's file and the files
+of your own code it imports: ``plugins.source_files``). ``marinebench run --resume`` skips an experiment whose
+``manifest.json`` has the same key; an interrupted sweep reuses its finished batches only under the same key.
 """
 
 from __future__ import annotations
@@ -64,12 +64,14 @@ def custom_sources(exp) -> list[str]:
 
 def inputs_key(exp) -> str:
     """SHA-256 of everything an experiment's numbers depend on (see the module docstring)."""
-    from marinebench.plugins import source_digest
+    from marinebench.plugins import file_digest, source_files
     from marinebench.results.writer import versions
 
     h = hashlib.sha256()
     for part in (exp.model_dump_json(), package_digest(), json.dumps(versions(), sort_keys=True)):
         h.update(part.encode())
     for source in custom_sources(exp):
-        h.update(f"{source}\0{source_digest(source)}".encode())
+        h.update(source.encode())
+        for path in source_files(source):
+            h.update(f"\0{path}\0{file_digest(path)}".encode())
     return h.hexdigest()

@@ -23,7 +23,7 @@ def _per_run(scenario: type) -> str:
 #: Descriptions of the kinds whose models do not tell them apart (one ControllerSpec, one ErrorMetric for three).
 CONTROLLER_DOCS = {"rise": "RISE (Fischer et al. 2014), rov_tracking scenarios",
                    "srise": "S+RISE (Tijjani eqs. 14-17); feedback: cdo makes it CDO-S+RISE",
-                   "custom": "a controller class of your own (source: file.py:Class; command(e1, e1_dot, h) -> tau)"}
+                   "custom": "a controller class of your own (source: file.py:Class or module:Class; command(e1, e1_dot, h) -> tau)"}
 METRIC_DOCS = {
     "std": "standard deviation of est - truth over the window (Bejarano Tables III/IV)",
     "rmse": "root mean square of est - truth over the window",

@@ -7,6 +7,7 @@ import json
 import os
 import shutil
 import sys
+import sysconfig
 
 import pandas as pd
 import pytest
@@ -61,8 +62,8 @@ def as_module(example, tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path / "site"))
     example.write_text(example.read_text().replace("source: earth_eso.py:", f"source: {package}.eso:"))
     yield example, module, f"{package}.eso:EarthFrameEso"
-    for name in (package, f"{package}.eso"):
-        sys.modules.pop(name, None)
+    for name in [name for name in sys.modules if name == package or name.startswith(f"{package}.")]:
+        del sys.modules[name]
 
 
 def test_a_module_source_runs_and_the_manifest_and_resume_key_name_its_file(as_module, tmp_path):
@@ -82,6 +83,88 @@ def test_a_module_source_runs_and_the_manifest_and_resume_key_name_its_file(as_m
     before = inputs_key(exp)
     module.write_text(module.read_text() + "\n# edited\n")
     assert inputs_key(exp) != before
+
+
+def _write(path, text):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+def test_the_files_a_module_source_imports_from_its_package_are_in_the_manifest_and_resume_key(as_module, tmp_path):
+    """What the class's module imports of its own package (relatively or by name, directly or through one another,
+    in a function too) is hashed with it, in the manifest and the resume key; a module of the package it does not
+    import, and installed packages (numpy), are not."""
+    from marinebench.loading import load_experiment
+    from marinebench.plugins import imported_digests, source_files
+    from marinebench.provenance import inputs_key
+
+    example, module, source = as_module
+    package = module.parent
+    _write(package / "gains.py", "from .util import tools\nSCALE = 3.0\n")
+    _write(package / "util" / "__init__.py", "")
+    _write(package / "util" / "tools.py", f"def wrap(x):\n    from {package.name} import deep\n    return deep.wrap(x)\n")
+    _write(package / "deep.py", "import numpy as np\n\n\ndef wrap(x):\n    return np.pi - np.mod(np.pi - x, 2 * np.pi)\n")
+    _write(package / "unused.py", "X = 1\n")
+    module.write_text(f"from . import gains\nimport {package.name}.util.tools\n" + module.read_text())
+    mine = ["__init__.py", "deep.py", "gains.py", "util/__init__.py", "util/tools.py"]
+    exp, _ = load_experiment(example)
+    assert source_files(source) == [module, *(package / name for name in mine)]
+    digests = {f"{package.name}/{name}": hashlib.sha256((package / name).read_bytes()).hexdigest() for name in mine}
+    assert imported_digests(source) == digests
+    res = runner.invoke(app, ["run", str(example), "--set", "scenario.horizon=6", "--seeds", "1",
+                              "--out", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    design = json.loads((tmp_path / "out" / "earth_eso" / "manifest.json").read_text())["designs"]["earth_eso_w5"]
+    assert design["imports"] == digests and design["sha256"] == hashlib.sha256(module.read_bytes()).hexdigest()
+    before = inputs_key(exp)
+    (package / "unused.py").write_text("X = 2\n")
+    assert inputs_key(exp) == before
+    (package / "deep.py").write_text((package / "deep.py").read_text() + "\n# edited\n")
+    assert inputs_key(exp) != before
+
+
+def test_a_file_source_is_hashed_with_the_files_of_its_folder_it_imports_and_their_errors_name_them(
+        example, tmp_path, monkeypatch):
+    """A ``.py`` source's own code is its folder (and below), less installed packages: a helper beside it that it
+    imports (found on sys.path) is hashed with it, and an exception raised in the helper while the runs are
+    simulated is one line naming the helper's file and line."""
+    from marinebench.loading import load_experiment
+    from marinebench.plugins import imported_digests, source_files
+    from marinebench.provenance import inputs_key
+
+    tag = hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]  # module names of their own: Python keeps them
+    source, helper = example.parent / "earth_eso.py", example.parent / f"helper_{tag}.py"
+    installed = example.parent / "site" / f"installed_{tag}.py"
+    _write(helper, f"import numpy\nimport installed_{tag}\n\n\ndef check(obs):\n"
+                   "    obs.calls = getattr(obs, 'calls', 0) + 1\n    if obs.calls > 400:\n"
+                   "        raise ZeroDivisionError('late')\n")
+    _write(installed, "X = 1\n")
+    old = "        eta, zeta, a = xhat[:, 0:3], xhat[:, 3:6], xhat[:, 6:9]\n"
+    text = source.read_text()
+    assert old in text
+    source.write_text(f"import helper_{tag}\n" + text.replace(old, old + f"        helper_{tag}.check(self)\n"))
+    monkeypatch.syspath_prepend(str(example.parent / "site"))
+    monkeypatch.syspath_prepend(str(example.parent))
+    real = sysconfig.get_path
+    monkeypatch.setattr(sysconfig, "get_path", lambda key: str(installed.parent) if key == "purelib" else real(key))
+    try:
+        exp, _ = load_experiment(example)
+        name = exp.variants[2].observer.source
+        assert source_files(name) == [source.resolve(), helper.resolve()]
+        assert imported_digests(name) == {helper.name: hashlib.sha256(helper.read_bytes()).hexdigest()}
+        before = inputs_key(exp)
+        installed.write_text("X = 2\n")
+        assert inputs_key(exp) == before
+        helper.write_text(helper.read_text() + "\n# edited\n")
+        assert inputs_key(exp) != before
+        res = runner.invoke(app, ["run", str(example), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1"])
+        assert res.exit_code == 2 and res.output.strip() == (
+            f"error: {example}: {helper.resolve()}, line 8, in check: ZeroDivisionError: late (a class of your own, "
+            "while the runs were simulated)"), res.output
+        assert not (tmp_path / "out").exists()
+    finally:
+        for module in (f"helper_{tag}", f"installed_{tag}"):
+            sys.modules.pop(module, None)
 
 
 def test_a_source_that_cannot_be_imported_is_one_line_naming_file_and_key(example, tmp_path):
@@ -374,6 +457,7 @@ def test_a_custom_controller_runs_in_the_closed_loop_and_sweeps(controller_examp
     source = controller_example.parent / "pid.py"
     assert designs["pid"]["controller"]["source"] == f"{source.resolve()}:Pid"
     assert designs["pid"]["controller_sha256"] == hashlib.sha256(source.read_bytes()).hexdigest()
+    assert designs["pid"]["controller_imports"] == {}  # numpy only: nothing of its own
     res = runner.invoke(app, ["sweep", "depth_kp", "--config", str(controller_example), "--n", "2", "--horizon", "8",
                               "--seeds", "1", "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 0, res.output
