@@ -115,7 +115,7 @@ def source_files(source: str) -> list[Path]:
 
     Your own code is what lies in the class's top-level package (``lab/`` for ``lab.observers.eso:Class``), or,
     for a ``.py`` source or a module outside any package, in its folder and below, less the interpreter's library
-    and installed packages (``site-packages``). marinebench itself is never followed: its code is in every
+    and installed packages (a ``site-packages`` or ``dist-packages`` folder). marinebench itself is never followed: its code is in every
     manifest's ``source_digest``. The imports are read from the files (``ast``), not run, so one inside a function
     or under a condition counts as well; a name that is not found (or would import a package that its class did
     not) is skipped. Empty for a module without a file of its own (a namespace package)."""
@@ -135,6 +135,10 @@ def source_files(source: str) -> list[Path]:
     return [first, *sorted(found - {first})]
 
 
+#: Folders of installed packages (the environment's, the user's, a system's), never your own code.
+INSTALLED = frozenset({"site-packages", "dist-packages"})
+
+
 def _own_code_root(source: str, first: Path):
     """(the folder imported files are named relative to, whether a file is your own code) for ``source``."""
     where, _ = split_source(source)
@@ -144,9 +148,10 @@ def _own_code_root(source: str, first: Path):
         package = Path(locations[0]).resolve()
         return package.parent, lambda file: file.is_relative_to(package)
     folder = first.parent
-    others = [Path(sysconfig.get_path(key)).resolve() for key in ("stdlib", "platstdlib", "purelib", "platlib")]
+    others = [Path(sysconfig.get_path(key)).resolve() for key in ("stdlib", "platstdlib")]
     others.append(Path(__file__).resolve().parent)  # marinebench
-    return folder, lambda file: file.is_relative_to(folder) and not any(file.is_relative_to(o) for o in others)
+    return folder, lambda file: (file.is_relative_to(folder) and not INSTALLED.intersection(file.parts)
+                                 and not any(file.is_relative_to(o) for o in others))
 
 
 def _package_of(name: str, file: Path) -> str:
