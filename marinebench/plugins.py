@@ -73,8 +73,9 @@ def user_class(source: str, members: Iterable[str]) -> type:
 def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError | None:
     """``exc``, raised while the runs were simulated, as one line naming where in a class of your own (one of
     ``sources``) it was raised: its file, line and member, or those of a file of your own it imports (None when no
-    frame of its traceback is in one of their :func:`source_files`, e.g. an engine error), or, for a :class:`ProtocolError` (an answer outside the protocol), what was wrong.
-    The class was checked at validation; this is what it did later."""
+    frame of its traceback is in one of their :func:`source_files`, e.g. an engine error), or, for a
+    :class:`ProtocolError` (an answer outside the protocol), what was wrong. The class was checked at validation;
+    this is what it did later."""
     if isinstance(exc, ProtocolError):
         return UserCodeError(f"{exc} (a class of your own, while the runs were simulated)")
     files = {path for source in sources for path in source_files(source)}
@@ -115,10 +116,10 @@ def source_files(source: str) -> list[Path]:
 
     Your own code is what lies in the class's top-level package (``lab/`` for ``lab.observers.eso:Class``), or,
     for a ``.py`` source or a module outside any package, in its folder and below, less the interpreter's library
-    and installed packages (a ``site-packages`` or ``dist-packages`` folder). marinebench itself is never followed: its code is in every
-    manifest's ``source_digest``. The imports are read from the files (``ast``), not run, so one inside a function
-    or under a condition counts as well; a name that is not found (or would import a package that its class did
-    not) is skipped. Empty for a module without a file of its own (a namespace package)."""
+    and installed packages (a ``site-packages`` or ``dist-packages`` folder). marinebench itself is never followed:
+    its code is in every manifest's ``source_digest``. The imports are read from the files (``ast``), not run, so
+    one inside a function or under a condition counts as well; a name that is not found (or would import a package
+    that its class did not) is skipped. Empty for a module without a file of its own (a namespace package)."""
     where, _ = split_source(source)
     first = Path(where).resolve() if where.endswith(".py") else _module_file(where, may_import=True)
     if first is None:
