@@ -111,7 +111,9 @@ def _experiment(experiment: Experiment | str | Path, caller: str) -> Experiment:
 
 def write(result: RunResult, out_dir: str | Path, config: str | Path | None = None) -> Path:
     """Write ``config.resolved.yaml``, ``manifest.json``, ``metrics.csv``, ``table.md`` and ``figures/``
-    atomically to ``out_dir``, as ``marinebench run`` does (``config``: the file to name in the manifest)."""
+    atomically to ``out_dir``, as ``marinebench run`` does (``config``: the file to name in the manifest). The figures
+    are drawn from the result's traces: one of ``run(..., traces=False)`` is a ValueError (nothing written) unless its
+    config draws no figures."""
     from marinebench.experiments.runner import RunResult
     from marinebench.results.outputs import write_run
 

@@ -39,6 +39,16 @@ def test_a_result_without_traces_says_so(tiny_config):
         result.trace_frame()
 
 
+def test_writing_a_result_without_traces_is_refused_unless_its_config_draws_no_figures(tiny_config, tmp_path):
+    """``marinebench.write`` of a ``run(..., traces=False)``: the figures cannot be drawn, so nothing is written (not
+    a folder without them); a config without figures writes the rest."""
+    with pytest.raises(ValueError, match="kept no traces, which its figures are drawn from"):
+        mb.write(mb.run(mb.load(tiny_config), traces=False), tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    folder = mb.write(mb.run(mb.load(tiny_config, sets="figures=[]"), traces=False), tmp_path / "out")
+    assert {p.name for p in folder.iterdir()} >= {"manifest.json", "metrics.csv", "table.md"}
+
+
 def test_run_traces_writes_the_frame_gzipped_the_same_bytes_every_time(tiny_config, tmp_path):
     digests = []
     for out in ("a", "b"):

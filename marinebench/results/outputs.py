@@ -91,8 +91,15 @@ def model_assumptions(worlds: dict, variants=()) -> list[str]:
 def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims: list[ClaimResult] | None = None) -> Path:
     """Write one experiment's result directory atomically (``claims``: its checked claims, if already evaluated on
     the metrics :func:`as_written`; a config with ``claims:`` also gets ``claims.md``, one with
-    ``engine.write_traces`` ``traces.csv.gz``). ``table.md`` and ``claims.md`` are made from ``metrics.csv``'s values."""
+    ``engine.write_traces`` ``traces.csv.gz``). ``table.md`` and ``claims.md`` are made from ``metrics.csv``'s values.
+    A result that kept no traces (``marinebench.run(..., traces=False)``) of an experiment that draws figures or
+    writes them is a ValueError, before anything is written."""
     exp = result.experiment
+    parts = list(result.parts.values()) or [result]
+    drawn = [part for part in parts if part.experiment.figures or part.experiment.engine.write_traces]
+    if any(part.traced.size == 0 for part in drawn):
+        raise ValueError(f"{exp.name}: this result kept no traces, which its figures are drawn from "
+                         "(run with traces=True)")
     metrics = as_written(result.metrics)
     if claims is None:
         claims = evaluate_claims(exp, metrics)
@@ -106,7 +113,7 @@ def write_run(result: RunResult, out_dir: Path, sources: dict[str, Path], claims
             write_traces(result, tmp / TRACES_FILE)
         figdir = tmp / "figures"
         figdir.mkdir()
-        for part in result.parts.values() or [result]:
+        for part in parts:
             variant, seed = part.run_variant[part.traced], part.run_seed[part.traced]  # the traces' columns
             draw_figures(part.experiment, (*part.traces, variant, seed), figdir)
         worlds = {name: exp.part(name).scenario for name in exp.scenario_names}
