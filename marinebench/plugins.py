@@ -2,8 +2,10 @@
 observer (``observers/custom.py``) or controller (``controllers/spec.py``).
 
 A ``.py`` source is relative to the experiment file that names it (:func:`resolve_source`, applied when the file
-is read) and re-imported when it changes; a module source is imported as usual. Every failure is a ValueError
-with a one-line reason, so config validation reports it with the file and key.
+is read); a module source is imported as usual. Either is imported again, with the files of your own code it imports
+(:func:`source_files`), once one of those files changes, so a long-lived process (a notebook calling
+``marinebench.run`` again) runs the code on disk, the code its manifest hashes. Every failure is a ValueError with a
+one-line reason, so config validation reports it with the file and key.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ from typing import Any
 
 from marinebench.errors import ProtocolError, UserCodeError
 
-_LOADED: dict[str, tuple[float, type]] = {}
+#: source -> (its files, their stamps when it was imported, the class).
+_LOADED: dict[str, tuple[list[Path], tuple, type]] = {}
 
 
 def split_source(source: str) -> tuple[str, str]:
@@ -52,22 +55,50 @@ def _module(where: str):
 
 
 def user_class(source: str, members: Iterable[str]) -> type:
-    """The class ``source`` names, with every one of ``members`` (attributes or methods); cached until a
-    ``.py`` source changes."""
+    """The class ``source`` names, with every one of ``members`` (attributes or methods); cached until one of its
+    :func:`source_files` changes, then imported again with them (their modules are dropped from ``sys.modules`` first,
+    so an edited helper is run again too, not taken from the modules Python keeps)."""
     where, name = split_source(source)
     if where.endswith(".py") and not Path(where).is_file():
         raise ValueError(f"source file not found: {where}")
-    mtime = Path(where).stat().st_mtime if where.endswith(".py") else 0.0
-    if source in _LOADED and _LOADED[source][0] == mtime:
-        return _LOADED[source][1]
+    if source in _LOADED:
+        files, stamps, cls = _LOADED[source]
+        if _stamps(files) == stamps:
+            return cls
+        del _LOADED[source]
+        _forget(files)
     cls = getattr(_module(where), name, None)
     if not isinstance(cls, type):
         raise ValueError(f"{where} has no class '{name}'")  # noqa: TRY004 - pydantic reports ValueErrors
     missing = [m for m in members if not hasattr(cls, m)]
     if missing:
         raise ValueError(f"{name} ({where}) lacks {', '.join(missing)}")
-    _LOADED[source] = (mtime, cls)
+    files = source_files(source)
+    _LOADED[source] = (files, _stamps(files), cls)
     return cls
+
+
+def _stamps(files: list[Path]) -> tuple:
+    """(modification time in ns, size) of each file; None for one that is gone."""
+    out = []
+    for path in files:
+        try:
+            stat = path.stat()
+        except OSError:
+            out.append(None)
+        else:
+            out.append((stat.st_mtime_ns, stat.st_size))
+    return tuple(out)
+
+
+def _forget(files: list[Path]) -> None:
+    """Drop the modules loaded from ``files`` from ``sys.modules``, so that importing them runs their code again."""
+    stale = set(files)
+    for name, module in list(sys.modules.items()):
+        file = getattr(module, "__file__", None)
+        if isinstance(file, str) and Path(file).resolve() in stale:
+            del sys.modules[name]
+    importlib.invalidate_caches()  # a file added since (a new helper) is found
 
 
 def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError | None:
@@ -87,22 +118,17 @@ def user_code_error(exc: BaseException, sources: Iterable[str]) -> UserCodeError
                          "of your own, while the runs were simulated)")
 
 
-def source_digest(source: str) -> str | None:
-    """SHA-256 of the file that defines the class (the first of :func:`source_files`): the ``.py`` source, or a
-    module source's own file (e.g. ``site-packages/lab/observers.py``); None for a module without a file (a
-    namespace package)."""
-    files = source_files(source)
-    return file_digest(files[0]) if files else None
-
-
-def imported_digests(source: str) -> dict[str, str]:
-    """SHA-256 of each file of your own code that the class's file imports (the rest of :func:`source_files`),
-    named relative to its package's parent folder (``lab/gains.py``) or to the source's folder (``helpers.py``)."""
+def source_record(source: str) -> tuple[str | None, dict[str, str]]:
+    """(SHA-256 of the file that defines the class, SHA-256 of each file of your own code it imports), from one walk
+    of :func:`source_files`. The first is of the ``.py`` source or of a module source's own file (e.g.
+    ``site-packages/lab/observers.py``), None for a module without a file (a namespace package); the imported files
+    are named relative to their package's parent folder (``lab/gains.py``) or to the source's folder
+    (``helpers.py``)."""
     files = source_files(source)
     if not files:
-        return {}
+        return None, {}
     root, _ = _own_code_root(source, files[0])
-    return {path.relative_to(root).as_posix(): file_digest(path) for path in files[1:]}
+    return file_digest(files[0]), {path.relative_to(root).as_posix(): file_digest(path) for path in files[1:]}
 
 
 def file_digest(path: Path) -> str:

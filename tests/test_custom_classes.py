@@ -8,6 +8,7 @@ import os
 import shutil
 import sys
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -94,7 +95,7 @@ def test_the_files_a_module_source_imports_from_its_package_are_in_the_manifest_
     in a function too) is hashed with it, in the manifest and the resume key; a module of the package it does not
     import, and installed packages (numpy), are not."""
     from marinebench.loading import load_experiment
-    from marinebench.plugins import imported_digests, source_files
+    from marinebench.plugins import source_files, source_record
     from marinebench.provenance import inputs_key
 
     example, module, source = as_module
@@ -109,7 +110,7 @@ def test_the_files_a_module_source_imports_from_its_package_are_in_the_manifest_
     exp, _ = load_experiment(example)
     assert source_files(source) == [module, *(package / name for name in mine)]
     digests = {f"{package.name}/{name}": hashlib.sha256((package / name).read_bytes()).hexdigest() for name in mine}
-    assert imported_digests(source) == digests
+    assert source_record(source) == (hashlib.sha256(module.read_bytes()).hexdigest(), digests)
     res = runner.invoke(app, ["run", str(example), "--set", "scenario.horizon=6", "--seeds", "1",
                               "--out", str(tmp_path / "out"), "--quiet"])
     assert res.exit_code == 0, res.output
@@ -122,13 +123,63 @@ def test_the_files_a_module_source_imports_from_its_package_are_in_the_manifest_
     assert inputs_key(exp) != before
 
 
+def test_an_edited_helper_is_what_the_next_run_in_the_same_process_runs(as_module, tmp_path):
+    """A notebook runs, edits a file the class imports, and runs again: the second run is the edited code (the class
+    and its helper are imported again, not taken from the modules Python keeps), and its manifest hashes it. Here
+    the helper doubles the bandwidth, so the edited omega = 5 variant is the first run's omega = 10 one."""
+    import marinebench as mb
+
+    example, module, _ = as_module
+    helper = module.parent / "gains.py"
+    _write(helper, "FACTOR = 1\n")
+    old = "        self.omega = np.array("
+    assert old in module.read_text()
+    text = module.read_text().replace(old, old.replace("np.", "FACTOR * np."))
+    module.write_text("from .gains import FACTOR\n" + text)
+    exp = mb.load(example, sets=["scenario.horizon=6", "seeds=1"])
+    std = [mb.run(exp, traces=False)]
+    helper.write_text("FACTOR = 2.0\n")  # another size: Python's cached bytecode is checked by size and whole second
+    std.append(mb.run(exp, traces=False))
+    std = [r.metrics[r.metrics["metric"] == "std"].set_index(["variant", "signal", "seed"])["value"] for r in std]
+    assert not np.allclose(std[1]["earth_eso_w5"], std[0]["earth_eso_w5"])
+    assert np.allclose(std[1]["earth_eso_w5"], std[0]["earth_eso_w10"], rtol=1e-12, atol=0)
+    design = json.loads((mb.write(mb.run(exp), tmp_path / "out") / "manifest.json").read_text())
+    hashed = (module.parent / "__init__.py", helper)  # "from .gains" imports the package, then its module
+    assert design["designs"]["earth_eso_w5"]["imports"] == {
+        f"{module.parent.name}/{path.name}": hashlib.sha256(path.read_bytes()).hexdigest() for path in hashed}
+
+
+def test_a_file_source_and_its_helper_are_imported_again_once_either_changes(tmp_path, monkeypatch):
+    """plugins.user_class: the same class object while no file of it changes; a new one once its helper (a module
+    found on sys.path) or its own file does, with the helper run again."""
+    tag = hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]
+    path, helper = tmp_path / "mine.py", tmp_path / f"helper_{tag}.py"
+    _write(helper, "VALUE = 1\n")
+    _write(path, f"import helper_{tag}\n\n\nclass Mine:\n    value = helper_{tag}.VALUE\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    source = f"{path}:Mine"
+    try:
+        first = user_class(source, ["value"])
+        assert first.value == 1 and user_class(source, ["value"]) is first
+        helper.write_text("VALUE = 22\n")
+        second = user_class(source, ["value"])
+        assert second is not first and second.value == 22 and user_class(source, ["value"]) is second
+        path.write_text(path.read_text() + "    other = 3\n")
+        assert user_class(source, ["value", "other"]).other == 3
+        helper.unlink()
+        with pytest.raises(ValueError, match=f"cannot import.*No module named 'helper_{tag}'"):
+            user_class(source, ["value"])
+    finally:
+        sys.modules.pop(f"helper_{tag}", None)
+
+
 def test_a_file_source_is_hashed_with_the_files_of_its_folder_it_imports_and_their_errors_name_them(
         example, tmp_path, monkeypatch):
     """A ``.py`` source's own code is its folder (and below), less installed packages: a helper beside it that it
     imports (found on sys.path) is hashed with it, and an exception raised in the helper while the runs are
     simulated is one line naming the helper's file and line."""
     from marinebench.loading import load_experiment
-    from marinebench.plugins import imported_digests, source_files
+    from marinebench.plugins import source_files, source_record
     from marinebench.provenance import inputs_key
 
     tag = hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]  # module names of their own: Python keeps them
@@ -148,7 +199,7 @@ def test_a_file_source_is_hashed_with_the_files_of_its_folder_it_imports_and_the
         exp, _ = load_experiment(example)
         name = exp.variants[2].observer.source
         assert source_files(name) == [source.resolve(), helper.resolve()]
-        assert imported_digests(name) == {helper.name: hashlib.sha256(helper.read_bytes()).hexdigest()}
+        assert source_record(name)[1] == {helper.name: hashlib.sha256(helper.read_bytes()).hexdigest()}
         before = inputs_key(exp)
         installed.write_text("X = 2\n")
         assert inputs_key(exp) == before

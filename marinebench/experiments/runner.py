@@ -29,7 +29,7 @@ from marinebench.observers.custom import CheckedObserver, observer_class
 from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
 from marinebench.observers.dp import SIGNALS as DP_SIGNALS
 from marinebench.observers.liu_eso import LiuEsoObserver
-from marinebench.plugins import imported_digests, source_digest, user_code_error
+from marinebench.plugins import source_record, user_code_error
 from marinebench.provenance import custom_sources
 from marinebench.rov_scenario import RovWorld
 from marinebench.scenario import OpenLoopASV
@@ -182,8 +182,8 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
         if v.controller is not None:
             out[v.name] = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
             if v.controller.kind == "custom":
-                out[v.name]["controller_sha256"] = source_digest(v.controller.source)
-                out[v.name]["controller_imports"] = imported_digests(v.controller.source)
+                sha, imports = source_record(v.controller.source)
+                out[v.name].update(controller_sha256=sha, controller_imports=imports)
             if o is not None and (o.cdo or o.eo) and len(exp.variants) <= DESIGNS_UP_TO:
                 cdo, eo = o.resolve(exp.scenario)
                 out[v.name].update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))
@@ -200,8 +200,8 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
                 **noise_parts(exp.scenario, {"u": -pos.gain[[0, 2, 4], 0], "v": -pos.gain[[1, 3, 5], 1]}),  # -L_pz, eq. (26) at psi = 0
             }
         elif o.kind == "custom":
-            out[v.name] = {"source": o.source, "sha256": source_digest(o.source), "imports": imported_digests(o.source),
-                           "params": o.params}
+            sha, imports = source_record(o.source)
+            out[v.name] = {"source": o.source, "sha256": sha, "imports": imports, "params": o.params}
         elif o.kind == "liu_eso":
             gains = o.gains().tolist()
             out[v.name] = {"gains": gains, "mode": o.mode, **(noise_parts(exp.scenario, {"u": gains, "v": gains}) if o.mode == "linear" else {})}
