@@ -57,7 +57,8 @@ def _module(where: str):
 def user_class(source: str, members: Iterable[str]) -> type:
     """The class ``source`` names, with every one of ``members`` (attributes or methods); cached until one of its
     :func:`source_files` changes, then imported again with them (their modules are dropped from ``sys.modules`` first,
-    so an edited helper is run again too, not taken from the modules Python keeps)."""
+    so an edited helper is run again too, not taken from the modules Python keeps). A module source that was imported
+    before its first use here (by you, say) is imported again, with its files, the same way."""
     where, name = split_source(source)
     if where.endswith(".py") and not Path(where).is_file():
         raise ValueError(f"source file not found: {where}")
@@ -67,6 +68,8 @@ def user_class(source: str, members: Iterable[str]) -> type:
             return cls
         del _LOADED[source]
         _forget(files)
+    elif where in sys.modules:  # a module you imported yourself (in a notebook) may have been edited since
+        _forget(source_files(source))
     cls = getattr(_module(where), name, None)
     if not isinstance(cls, type):
         raise ValueError(f"{where} has no class '{name}'")  # noqa: TRY004 - pydantic reports ValueErrors
