@@ -68,7 +68,7 @@ def user_class(source: str, members: Iterable[str]) -> type:
             return cls
         del _LOADED[source]
         _forget(files)
-    elif where in sys.modules:  # a module you imported yourself (in a notebook) may have been edited since
+    elif where in sys.modules and not _current(where):  # imported by you (in a notebook): maybe edited since
         _forget(source_files(source))
     cls = getattr(_module(where), name, None)
     if not isinstance(cls, type):
@@ -79,6 +79,12 @@ def user_class(source: str, members: Iterable[str]) -> type:
     files = source_files(source)
     _LOADED[source] = (files, _stamps(files), cls)
     return cls
+
+
+def _current(where: str) -> bool:
+    """Whether module ``where`` was imported here, for another class of it, whose files are unchanged since."""
+    return any(split_source(other)[0] == where and _stamps(files) == stamps
+               for other, (files, stamps, _) in _LOADED.items())
 
 
 def _stamps(files: list[Path]) -> tuple:

@@ -175,18 +175,23 @@ def test_a_file_source_and_its_helper_are_imported_again_once_either_changes(tmp
 
 def test_a_module_you_imported_and_edited_before_its_first_run_is_imported_again(tmp_path, monkeypatch):
     """The class of a module source imported before marinebench first uses it (by hand, in a notebook) is taken from
-    the files on disk, with its package's helpers: not the modules Python kept from before they were edited."""
+    the files on disk, with its package's helpers: not the modules Python kept from before they were edited. Another
+    class of the module, used next, comes from the same import."""
     import importlib
 
     package = f"lab_{hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]}"
     _write(tmp_path / package / "__init__.py", "")
     _write(tmp_path / package / "gains.py", "VALUE = 1\n")
-    _write(tmp_path / package / "mine.py", "from .gains import VALUE\n\n\nclass Mine:\n    value = VALUE\n")
+    _write(tmp_path / package / "mine.py", "from .gains import VALUE\n\n\nclass Mine:\n    value = VALUE\n\n\n"
+                                            "class Other:\n    value = VALUE\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     try:
         assert importlib.import_module(f"{package}.mine").Mine.value == 1
         (tmp_path / package / "gains.py").write_text("VALUE = 22\n")
-        assert user_class(f"{package}.mine:Mine", ["value"]).value == 22
+        mine = user_class(f"{package}.mine:Mine", ["value"])
+        assert mine.value == 22
+        other = user_class(f"{package}.mine:Other", ["value"])  # the module imported just now is not imported again
+        assert sys.modules[f"{package}.mine"].Mine is mine and sys.modules[f"{package}.mine"].Other is other
     finally:
         for name in [name for name in sys.modules if name == package or name.startswith(f"{package}.")]:
             del sys.modules[name]
