@@ -2,9 +2,10 @@
 observer (``observers/custom.py``) or controller (``controllers/spec.py``).
 
 A ``.py`` source is relative to the experiment file that names it (:func:`resolve_source`, applied when the file
-is read); a module source is imported as usual. Either is imported again, with the files of your own code it imports
-(:func:`source_files`), once one of those files changes, so a long-lived process (a notebook calling
-``marinebench.run`` again) runs the code on disk, the code its manifest hashes. Every failure is a ValueError with a
+is read) and imports the files beside it as ``python file.py`` would (:func:`_module`: its folder is first on
+``sys.path`` while it runs, last after); a module source is imported as usual. Either is imported again, with the
+files of your own code it imports (:func:`source_files`), once one of those files changes, so a long-lived process
+(a notebook calling ``marinebench.run`` again) runs the code on disk, the code its manifest hashes. Every failure is a ValueError with a
 one-line reason, so config validation reports it with the file and key.
 """
 
@@ -25,6 +26,8 @@ from marinebench.errors import ProtocolError, UserCodeError
 
 #: source -> (its files, their stamps when it was imported, the class).
 _LOADED: dict[str, tuple[list[Path], tuple, type]] = {}
+#: The folders of the ``.py`` sources imported in this process (each is on ``sys.path``, last).
+_FOLDERS: set[Path] = set()
 
 
 def split_source(source: str) -> tuple[str, str]:
@@ -41,17 +44,44 @@ def _module(where: str):
             return importlib.import_module(where)
         except Exception as exc:  # noqa: BLE001 - the user's module: any error is a config error naming it
             raise ValueError(f"cannot import module '{where}' ({type(exc).__name__}: {exc})") from None
-    path = Path(where)
-    module_name = "marinebench_user_" + hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
+    path = Path(where).resolve()
+    module_name = "marinebench_user_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # dataclasses and pickling look the module up by name
+    folder = str(path.parent)
+    _forget_helpers_of_other_folders(path)
+    _FOLDERS.add(path.parent)
+    sys.path.insert(0, folder)  # its imports find the files beside it first, as with `python file.py`
     try:
         spec.loader.exec_module(module)
     except Exception as exc:  # noqa: BLE001 - as above
         del sys.modules[module_name]
         raise ValueError(f"{where}: cannot import ({type(exc).__name__}: {exc})") from None
+    finally:  # then last, so that an import at run time finds them too, but never shadows an installed module
+        if folder in sys.path:
+            sys.path.remove(folder)
+        if folder not in sys.path:
+            sys.path.append(folder)
     return module
+
+
+def _forget_helpers_of_other_folders(path: Path) -> None:
+    """Drop from ``sys.modules`` each module the ``.py`` source ``path`` imports by a name a file beside it has
+    (``gains`` for ``gains.py`` or a package ``gains/``) that was loaded from the folder of another ``.py`` source (a
+    helper of the same name beside a source run earlier in this process), so that it imports its own. A module
+    loaded from anywhere else (an installed one) is left alone: the import finds that one, as it did before."""
+    folder = path.parent
+    for name in _imported_names(path, None):
+        module = sys.modules.get(name)
+        if "." in name or module is None or not ((folder / f"{name}.py").is_file()
+                                                  or (folder / name / "__init__.py").is_file()):
+            continue
+        file = getattr(module, "__file__", None)
+        where = Path(file).resolve() if isinstance(file, str) else None
+        if where is not None and any(where.is_relative_to(other) for other in _FOLDERS - {folder}):
+            for other in [m for m in sys.modules if m == name or m.startswith(f"{name}.")]:
+                del sys.modules[other]
 
 
 def user_class(source: str, members: Iterable[str]) -> type:
@@ -102,10 +132,10 @@ def _stamps(files: list[Path]) -> tuple:
 
 def _forget(files: list[Path]) -> None:
     """Drop the modules loaded from ``files`` from ``sys.modules``, so that importing them runs their code again."""
-    stale = set(files)
+    stale, names = set(files), {path.name for path in files}
     for name, module in list(sys.modules.items()):
-        file = getattr(module, "__file__", None)
-        if isinstance(file, str) and Path(file).resolve() in stale:
+        file = getattr(module, "__file__", None)  # resolved only when the file's name matches: ~2000 modules
+        if isinstance(file, str) and Path(file).name in names and Path(file).resolve() in stale:
             del sys.modules[name]
     importlib.invalidate_caches()  # a file added since (a new helper) is found
 
@@ -160,11 +190,12 @@ def source_files(source: str) -> list[Path]:
     if first is None:
         return []
     _, follows = _own_code_root(source, first)
-    found, todo = {first}, [(first, None if where.endswith(".py") else _package_of(where, first))]
+    beside = first.parent if where.endswith(".py") else None  # first on sys.path while it was imported
+    found, todo = {first}, [(first, None if beside else _package_of(where, first))]
     while todo:
         path, package = todo.pop()
         for name in _imported_names(path, package):
-            file = _module_file(name)
+            file = (beside and _file_in(beside, name)) or _module_file(name)
             if file is not None and file not in found and follows(file):
                 found.add(file)
                 todo.append((file, _package_of(name, file)))
@@ -218,6 +249,15 @@ def _imported_names(path: Path, package: str | None) -> list[str]:
             names += [base, *(f"{base}.{alias.name}" for alias in node.names if alias.name != "*")]
     parts = (name.split(".") for name in names if name)
     return list(dict.fromkeys(".".join(p[: i + 1]) for p in parts for i in range(len(p))))
+
+
+def _file_in(folder: Path, name: str) -> Path | None:
+    """The file of module ``name`` in ``folder`` (``a/b.py`` or ``a/b/__init__.py`` for ``a.b``), or None."""
+    base = folder.joinpath(*name.split("."))
+    for file in (base.parent / f"{base.name}.py", base / "__init__.py"):
+        if file.is_file():
+            return file.resolve()
+    return None
 
 
 def _module_file(name: str, may_import: bool = False) -> Path | None:

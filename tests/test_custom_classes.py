@@ -239,6 +239,48 @@ def test_a_file_source_is_hashed_with_the_files_of_its_folder_it_imports_and_the
             sys.modules.pop(module, None)
 
 
+def test_a_file_source_imports_the_helpers_beside_it_each_its_own(tmp_path, monkeypatch):
+    """A ``.py`` source imports the files beside it as ``python file.py`` would, with nothing put on sys.path by
+    hand: two configs in two folders, each with a class file importing a helper of the same name (``gains``, a
+    FACTOR on ω), run by one ``run`` in one process, each run their own helper and hash it in their manifest. The
+    folders end up last on sys.path, so they shadow no installed module."""
+    from marinebench import plugins
+
+    monkeypatch.setattr(sys, "path", list(sys.path))  # the folders this adds go with the test
+    tag = hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]  # module names of their own: Python keeps them
+    gains, eso = f"gains_{tag}", f"eso_{tag}"
+    configs, design_a = [], None
+    for folder, factor, omegas in (("a", "1", (5.0, 10.0)), ("b", "2.0", (5.0,))):
+        _write(tmp_path / folder / f"{gains}.py", f"FACTOR = {factor}\n")
+        shutil.copy(EXAMPLE / "earth_eso.py", tmp_path / folder / f"{eso}.py")
+        _write(tmp_path / folder / "mine.py", f"import {gains}\nfrom {eso} import EarthFrameEso\n\n\n"
+               "class Mine(EarthFrameEso):\n    def __init__(self, params, plant, dt):\n"
+               f"        super().__init__([{{'omega': p['omega'] * {gains}.FACTOR}} for p in params], plant, dt)\n")
+        variants = [{"name": f"w{w:g}", "observer": {"kind": "custom", "source": "mine.py:Mine", "params": {"omega": w}}}
+                    for w in omegas]
+        configs.append(tmp_path / folder / f"{folder}.yaml")
+        configs[-1].write_text(yaml.safe_dump({"scenario": {"from": str(ROOT / "scenarios" / "cs2_noisy.yaml"),
+                                                            "horizon": 10.0},
+                                               "seeds": 2, "variants": variants, "metrics": [{"kind": "std"}]}))
+    try:
+        res = runner.invoke(app, ["run", *map(str, configs), "--out", str(tmp_path / "out"), "--quiet", "--jobs", "1"])
+        assert res.exit_code == 0, res.output
+        std = {folder: pd.read_csv(tmp_path / "out" / folder / "metrics.csv").set_index(["variant", "signal", "seed"])
+               ["value"] for folder in "ab"}
+        assert np.allclose(std["b"]["w5"], std["a"]["w10"], rtol=1e-12, atol=0)  # b's ω = 5 ran with b's FACTOR 2
+        assert not np.allclose(std["b"]["w5"], std["a"]["w5"])
+        for folder in "ab":
+            design = json.loads((tmp_path / "out" / folder / "manifest.json").read_text())["designs"]["w5"]
+            design_a = design_a if folder == "b" else design["imports"]
+            assert design["imports"] == {f"{name}.py": hashlib.sha256((tmp_path / folder / f"{name}.py").read_bytes())
+                                         .hexdigest() for name in (gains, eso)}, folder
+            assert sys.path.index(str(tmp_path / folder)) > sys.path.index(str(plugins.Path(np.__file__).parents[1]))
+        assert plugins.source_record(f"{tmp_path / 'a' / 'mine.py'}:Mine")[1] == design_a  # not b's, imported last
+    finally:
+        for name in (gains, eso):
+            sys.modules.pop(name, None)
+
+
 def test_a_source_that_cannot_be_imported_is_one_line_naming_file_and_key(example, tmp_path):
     """A module that is not there, or a class file raising as it is imported: one line, exit 2, nothing written, and
     the half-imported file is not left behind in sys.modules."""
