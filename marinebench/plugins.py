@@ -38,14 +38,25 @@ def split_source(source: str) -> tuple[str, str]:
     return where, name
 
 
+def _module_name(where: str) -> str:
+    """The name the module of ``where`` (a module, or a ``.py`` file: a name of its own) has in ``sys.modules``."""
+    if not where.endswith(".py"):
+        return where
+    return "marinebench_user_" + hashlib.sha1(str(Path(where).resolve()).encode()).hexdigest()[:12]
+
+
 def _module(where: str):
+    """The module ``where`` names: imported, or the one in ``sys.modules`` (which :func:`user_class` has dropped
+    unless it is current), so a file's classes come from one execution of it, as a module's do."""
     if not where.endswith(".py"):
         try:
             return importlib.import_module(where)
         except Exception as exc:  # noqa: BLE001 - the user's module: any error is a config error naming it
             raise ValueError(f"cannot import module '{where}' ({type(exc).__name__}: {exc})") from None
+    module_name = _module_name(where)
+    if module_name in sys.modules:
+        return sys.modules[module_name]
     path = Path(where).resolve()
-    module_name = "marinebench_user_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
     spec = importlib.util.spec_from_file_location(module_name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[module_name] = module  # dataclasses and pickling look the module up by name
@@ -88,17 +99,20 @@ def user_class(source: str, members: Iterable[str]) -> type:
     """The class ``source`` names, with every one of ``members`` (attributes or methods); cached until one of its
     :func:`source_files` changes, then imported again with them (their modules are dropped from ``sys.modules`` first,
     so an edited helper is run again too, not taken from the modules Python keeps). A module source that was imported
-    before its first use here (by you, say) is imported again, with its files, the same way."""
+    before its first use here (by you, say) is imported again, with its files, the same way. Classes of one module or
+    file, with its files unchanged, come from one import of it."""
     where, name = split_source(source)
     if where.endswith(".py") and not Path(where).is_file():
         raise ValueError(f"source file not found: {where}")
+    key = _module_name(where)
     if source in _LOADED:
         files, stamps, cls = _LOADED[source]
         if _stamps(files) == stamps:
             return cls
         del _LOADED[source]
-        _forget(files)
-    elif where in sys.modules and not _current(where):  # imported by you (in a notebook): maybe edited since
+        if not _current(key):  # else another class of it was imported again since the edit: that import serves
+            _forget(files)
+    elif key in sys.modules and not _current(key):  # imported by you (in a notebook), or before an edit
         _forget(source_files(source))
     cls = getattr(_module(where), name, None)
     if not isinstance(cls, type):
@@ -111,9 +125,10 @@ def user_class(source: str, members: Iterable[str]) -> type:
     return cls
 
 
-def _current(where: str) -> bool:
-    """Whether module ``where`` was imported here, for another class of it, whose files are unchanged since."""
-    return any(split_source(other)[0] == where and _stamps(files) == stamps
+def _current(key: str) -> bool:
+    """Whether the module named ``key`` in ``sys.modules`` was imported here, for another class of it, whose files
+    are unchanged since."""
+    return any(_module_name(split_source(other)[0]) == key and _stamps(files) == stamps
                for other, (files, stamps, _) in _LOADED.items())
 
 

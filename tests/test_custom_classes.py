@@ -647,3 +647,24 @@ def test_a_file_source_is_cached_until_it_changes(tmp_path):
     stat = path.stat()
     os.utime(path, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10**9))
     assert user_class(source, ["value"]).value == 2
+
+
+def test_the_classes_of_one_file_come_from_one_execution_of_it(tmp_path):
+    """Two classes of one ``.py`` source (``mine.py:A``, ``mine.py:B``) come from one execution of the file, as two
+    classes of a module come from one import: the module in ``sys.modules`` holds both (so either pickles), and
+    after an edit the first class imported again serves the second."""
+    import pickle
+
+    tag = hashlib.sha1(str(tmp_path).encode()).hexdigest()[:10]
+    path = tmp_path / "mine.py"
+    _write(tmp_path / f"counter_{tag}.py", "RUNS = 0\n")
+    _write(path, f"import counter_{tag}\n\ncounter_{tag}.RUNS += 1\n\n\nclass A:\n    value = 1\n\n\nclass B(A):\n    pass\n")
+    try:
+        for value in (1, 22):
+            a, b = user_class(f"{path}:A", ["value"]), user_class(f"{path}:B", ["value"])
+            module = sys.modules[a.__module__]
+            assert (module.A, module.B, b.value) == (a, b, value) and sys.modules[f"counter_{tag}"].RUNS == 1
+            assert pickle.loads(pickle.dumps(a)) is a and pickle.loads(pickle.dumps(b)) is b
+            path.write_text(path.read_text().replace("value = 1", "value = 22"))  # the edit imports both again
+    finally:
+        sys.modules.pop(f"counter_{tag}", None)
