@@ -5,8 +5,8 @@ A ``.py`` source is relative to the experiment file that names it (:func:`resolv
 is read) and imports the files beside it as ``python file.py`` would (:func:`_module`: its folder is first on
 ``sys.path`` while it runs, last after); a module source is imported as usual. Either is imported again, with the
 files of your own code it imports (:func:`source_files`), once one of those files changes, so a long-lived process
-(a notebook calling ``marinebench.run`` again) runs the code on disk, the code its manifest hashes. Every failure is a ValueError with a
-one-line reason, so config validation reports it with the file and key.
+(a notebook calling ``marinebench.run`` again) runs the code on disk, the code its manifest hashes. Every failure is
+a ValueError with a one-line reason, so config validation reports it with the file and key.
 """
 
 from __future__ import annotations
