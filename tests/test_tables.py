@@ -51,18 +51,20 @@ def test_the_preamble_says_how_many_seeds_and_whether_there_is_an_interval(tiny_
     assert "Mean over 2 seeds with the 95% Student-t interval in brackets;" in two and "One seed" not in two
 
 
-def test_a_study_table_without_a_table_section_shows_depth_and_yaw_of_the_first_metric():
-    """Multi-scenario (Tijjani) layout with ``table`` unset: a row per signal (depth, yaw) and scenario of the first
-    metric, a column per variant, no paper columns."""
+def test_a_study_table_without_a_table_section_shows_depth_and_yaw_of_every_metric():
+    """Multi-scenario (Tijjani) layout with ``table`` unset: a row per metric, signal (depth, yaw) and scenario, a
+    column per variant, no paper columns."""
     exp, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml", ["table=null"])
     scen = exp.scenario_names[0]
-    first = exp.metrics[0].label
+    first, second = exp.metrics[0].label, exp.metrics[1].label
     values = {(v.name, sig): [x] for v in exp.variants for sig, x in (("depth", 0.01), ("yaw", 0.02))}
-    summary = summarise(tidy_metrics(values, scenario=scen, metric=first))
+    summary = summarise(pd.concat([tidy_metrics(values, scenario=scen, metric=first),
+                                   tidy_metrics(values, scenario=scen, metric=second).assign(value=lambda d: d.value * 3)]))
     table = study_table(exp, summary)
     assert md_row(table, "index") == ["index", "scenario", *(f"{v.label or v.name} ours" for v in exp.variants)]
     assert md_row(table, f"{first} depth", scen)[2:] == ["0.01"] * len(exp.variants)
     assert md_row(table, f"{first} yaw", scen)[2:] == ["0.02"] * len(exp.variants)
+    assert md_row(table, f"{second} yaw", scen)[2:] == ["0.06"] * len(exp.variants)
     assert "paper" not in table.split("Variants:")[0]
     with_paper, _ = load_experiment(ROOT / "configs" / "tijjani_table3.yaml")
     header = md_row(study_table(with_paper, summary), "index")
@@ -89,6 +91,22 @@ def test_without_a_table_section_the_title_names_the_experiment_and_metric(tiny_
     table = markdown_table(tiny(tiny_config, "table=null"), summarise(tidy_metrics({("liu_eps0.2", "u"): [0.1, 0.2]})))
     assert table.startswith(f"## {tiny_config.stem}: std\n")
     assert md_row(table, "variant")[1:3] == ["e_u ours", "e_v ours"] and "paper" not in table
+
+
+def test_without_a_table_section_every_metric_gets_a_table_of_its_signals(tiny_config):
+    """No ``table:`` and two metrics: a table of each, one under the other, titled by the experiment and metric,
+    each with its own signals; the preamble, once, gives both windows."""
+    exp = tiny(tiny_config, "table=null", "metrics=[{kind: std, t_start: 1.0}, {kind: rmse, t_start: 2.0, signals: [v]}]")
+    std = tidy_metrics({("liu_eps0.2", "u"): [0.1, 0.2], ("liu_eps0.2", "v"): [0.3, 0.3]})
+    rmse = tidy_metrics({("liu_eps0.2", "v"): [0.5, 0.5]}, metric="rmse")
+    table = markdown_table(exp, summarise(pd.concat([std, rmse])))
+    head, sections = table.split("\n## ")[0], table.split("\n## ")[1:]
+    assert head.startswith(f"## {tiny_config.stem}: std\n") and [s.splitlines()[0] for s in sections] == [
+        f"{tiny_config.stem}: rmse"]
+    assert "std: std of est − truth over t ∈ [1, 4] s; rmse: rmse of est − truth over t ∈ [2, 4] s." in head
+    assert md_row(head, "variant")[1:3] == ["e_u ours", "e_v ours"] and md_row(head, "liu_eps0.2")[1] == "0.15 [-0.485, 0.785]"
+    assert md_row(sections[0], "variant") == ["variant", "e_v ours"]
+    assert md_row(sections[0], "liu_eps0.2") == ["liu_eps0.2", "0.5 [0.5, 0.5]"]
 
 
 def test_a_study_table_lists_each_variant_with_its_scenarios_and_set_settings():

@@ -131,7 +131,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """Multi-scenario layout (Tijjani Table III): a row per (metric, signal, scenario), a column per variant,
     each followed by the paper's value when given."""
     spec = exp.table
-    names = spec.shown if spec is not None else [exp.metrics[0].label]
+    names = spec.shown if spec is not None else [m.label for m in exp.metrics]
     signals = spec.signals if spec is not None else ["depth", "yaw"]
     paper = spec.paper if spec is not None else None
     display = spec.display if spec is not None else {}
@@ -169,25 +169,17 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
 def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
     """``table.md``: a row per variant, a column per (metric, signal) with the paper's value beside each of the
     first metric's (the paper's values are of that metric), and optionally a row of one variant's change relative
-    to another (``table.relative``). A multi-scenario experiment gets :func:`study_table`'s layout."""
+    to another (``table.relative``). Without a ``table:`` section, every metric gets such a table of its signals,
+    one under the other. A multi-scenario experiment gets :func:`study_table`'s layout."""
     if exp.scenarios is not None:
         return study_table(exp, summary)
     spec = exp.table
-    if spec is None:
-        names, signals, title, paper, display = [exp.metrics[0].label], exp.metrics[0].signals, None, None, {}
-    else:
-        names, signals, title, paper, display = spec.shown, spec.signals, spec.title, spec.paper, spec.display
+    names, paper, display = (spec.shown, spec.paper, spec.display) if spec else ([m.label for m in exp.metrics], None, {})
+    blocks = _blocks(exp)
     s = summary.set_index(["variant", "signal", "metric"])
-    multi = len(names) > 1
     paper_of = names[0] if paper is not None else None  # the paper's column beside each of this metric's
-    columns = [(name, sig) for name in names for sig in signals]
 
-    lines = [f"## {title or f'{exp.name}: {names[0]}'}", ""]
-    lines += _preamble(exp, "; ".join(_window(exp, n) for n in names),
-                       f"scenario `{exp.scenario.name}`, root seed {exp.seed}", paper)
-    lines += _grid(_variant_header(columns, display, multi, paper_of))
-
-    def row(label: str, cell, paper_key: str) -> str:
+    def row(label: str, columns, cell, paper_key: str) -> str:
         cells = [label]
         for name, sig in columns:
             cells.append(cell(name, sig))
@@ -201,14 +193,34 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
             return _cell(_shown(s.loc[key], display.get(f"{name}/{sig}"))) if key in s.index else "n/a"
         return cell
 
-    lines += [row(v.name, ours(v.name), v.name) for v in exp.variants]
+    def table(columns) -> list[str]:
+        return [*_grid(_variant_header(columns, display, len({n for n, _ in columns}) > 1, paper_of)),
+                *(row(v.name, columns, ours(v.name), v.name) for v in exp.variants)]
+
+    (title, columns), *more = blocks
+    lines = [f"## {title}", "", *_preamble(exp, "; ".join(_window(exp, n) for n in names),
+                                          f"scenario `{exp.scenario.name}`, root seed {exp.seed}", paper), *table(columns)]
+    for title, columns in more:  # without a table: section, the second metric's on
+        lines += ["", f"## {title}", *table(columns)]
     if spec is not None and spec.relative is not None:
         a, b = spec.relative
-        lines.append(row(f"{a} vs {b} [%]", _change_in_percent(s, a, b), f"{a}_vs_{b}"))
-    lines += ["", "Variants:", ""]
-    for v in exp.variants:
-        lines.append(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer) if t is not None))
-    return "\n".join(lines) + "\n"
+        lines.append(row(f"{a} vs {b} [%]", blocks[0][1], _change_in_percent(s, a, b), f"{a}_vs_{b}"))
+    return "\n".join(lines + _variant_lines(exp)) + "\n"
+
+
+def _variant_lines(exp: Experiment) -> list[str]:
+    """The list of variants under a table, each with its settings."""
+    return ["", "Variants:", "", *(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer)
+                                                                 if t is not None) for v in exp.variants)]
+
+
+def _blocks(exp: Experiment) -> list[tuple[str, list[tuple[str, str]]]]:
+    """(title, its (metric, signal) columns) of each table in ``table.md``: the ``table:`` section's one, or without
+    it one per metric, of that metric's signals."""
+    spec = exp.table
+    if spec is None:
+        return [(f"{exp.name}: {m.label}", [(m.label, sig) for sig in m.signals]) for m in exp.metrics]
+    return [(spec.title or f"{exp.name}: {spec.shown[0]}", [(name, sig) for name in spec.shown for sig in spec.signals])]
 
 
 def _variant_header(columns: list[tuple[str, str]], display, multi: bool, paper_of: str | None) -> list[str]:
