@@ -85,8 +85,7 @@ def _forget_helpers_of_other_folders(path: Path) -> None:
     folder = path.parent
     for name in _imported_names(path, None):
         module = sys.modules.get(name)
-        if "." in name or module is None or not ((folder / f"{name}.py").is_file()
-                                                  or (folder / name / "__init__.py").is_file()):
+        if "." in name or module is None or _file_in(folder, name) is None:
             continue
         file = getattr(module, "__file__", None)
         where = Path(file).resolve() if isinstance(file, str) else None
@@ -104,16 +103,17 @@ def user_class(source: str, members: Iterable[str]) -> type:
     where, name = split_source(source)
     if where.endswith(".py") and not Path(where).is_file():
         raise ValueError(f"source file not found: {where}")
-    key = _module_name(where)
-    if source in _LOADED:
-        files, stamps, cls = _LOADED[source]
-        if _stamps(files) == stamps:
-            return cls
+    cached = _LOADED.get(source)
+    if cached is not None:
+        if _stamps(cached[0]) == cached[1]:
+            return cached[2]
         del _LOADED[source]
-        if not _current(key):  # else another class of it was imported again since the edit: that import serves
-            _forget(files)
-    elif key in sys.modules and not _current(key):  # imported by you (in a notebook), or before an edit
-        _forget(source_files(source))
+    key = _module_name(where)
+    if not _current(key):  # else another class of it was imported since its files last changed: that import serves
+        if cached is not None:  # edited since
+            _forget(cached[0])
+        elif key in sys.modules:  # imported by you (in a notebook), or by a class of it before an edit
+            _forget(source_files(source))
     cls = getattr(_module(where), name, None)
     if not isinstance(cls, type):
         raise ValueError(f"{where} has no class '{name}'")  # noqa: TRY004 - pydantic reports ValueErrors
