@@ -130,7 +130,7 @@ def compare(baseline: str | Path, candidate: str | Path | None = None, *, varian
     A inside ``baseline``. ``metrics``: only these (``"claim"`` for the papers' claims); ``rtol``/``atol``: what counts
     as the same; ``paired=False``: independent samples (``--unpaired``); ``interval``: ``"bootstrap"`` or ``"t"``
     (``--interval``). Returns one row per cell (experiment, scenario, variant, signal, metric) with the two means, the
-    change and its CI, and ``verdict`` (worse, missing, new, better, same), the most severe first: the gate fails
+    change and its CI, and ``verdict`` (worse, missing, new, changed, better, same), the most severe first: the gate fails
     where ``(table.verdict == "worse").any()`` (the command's ``--strict``: ``table.verdict.isin(["worse",
     "missing"]).any()``). Unusable input raises :class:`marinebench.errors.MarinebenchError`
     naming the folder or file; a bad argument, ValueError."""

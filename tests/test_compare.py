@@ -32,14 +32,16 @@ runner = CliRunner()
 
 def write_result(root: Path, experiment: str, values: dict, seeds: int = 8, horizon: float = 10.0,
                  status: dict | None = None, root_seed: int = 1) -> Path:
-    """A synthetic result directory: values[(variant, signal)] -> per-seed array."""
+    """A synthetic result directory: values[(variant, signal)] -> per-seed array of metric ``std``
+    (values[(variant, signal, metric)] for another metric)."""
     d = root / experiment
     d.mkdir(parents=True)
     rows = []
-    for (variant, signal), vals in values.items():
+    for (variant, signal, *metric), vals in values.items():
         for s in range(seeds):
             st = (status or {}).get((variant, signal, s), "ok")
-            rows.append((experiment, "scen", variant, s, signal, "std", np.nan if st != "ok" else vals[s], st))
+            rows.append((experiment, "scen", variant, s, signal, metric[0] if metric else "std",
+                         np.nan if st != "ok" else vals[s], st))
     pd.DataFrame(rows, columns=["experiment", "scenario", "variant", "seed", "signal", "metric", "value", "status"]) \
         .to_csv(d / "metrics.csv", index=False)
     (d / "config.resolved.yaml").write_text(yaml.safe_dump({"scenario": {"horizon": horizon}, "seed": root_seed,
@@ -120,6 +122,22 @@ def test_improvement_and_missing_and_new_cells(tmp_path, base_values):
     assert strict.exit_code == 1 and "1 missing" in strict.output  # a dropped cell fails a strict gate
     only_new = runner.invoke(app, ["compare", str(tmp_path / "cand"), str(tmp_path / "cand"), "--strict"])
     assert only_new.exit_code == 0
+
+
+def test_a_diagnostic_that_moved_is_changed_not_worse(tmp_path, base_values):
+    """The resetting observer's reset count has no better side: more resets after a change (or a variant that resets
+    beside one that never does) is listed as changed, and the gate passes; the same move of an error fails it."""
+    jumps = np.array([3.0, 4, 3, 5, 4, 3, 4, 4])
+    write_result(tmp_path / "base", "exp", base_values | {("a", "z", "n_jumps"): jumps})
+    write_result(tmp_path / "cand", "exp", base_values | {("a", "z", "n_jumps"): jumps + 2})
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "cand")])
+    assert res.exit_code == 0, res.output
+    assert res.output.startswith("### marinebench compare: 0 worse, 0 better, 1 changed, 4 same")
+    assert "| changed | exp | scen | a | z | n_jumps | 3.75 | 5.75 | +53.3% |" in res.output
+    write_result(tmp_path / "worse", "exp", base_values | {("a", "z", "n_jumps"): jumps,
+                                                           ("a", "u"): base_values[("a", "u")] + 2})
+    res = runner.invoke(app, ["compare", str(tmp_path / "base"), str(tmp_path / "worse")])
+    assert res.exit_code == 1 and "0 worse" not in res.output, res.output
 
 
 def test_cells_are_listed_worse_missing_new_better_same(tmp_path, base_values):

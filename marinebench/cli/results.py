@@ -76,7 +76,7 @@ def compare(
 
 
 def _comparison_text(table, fmt: Format, all_cells: bool, paired: bool) -> str:
-    """compare's output in ``fmt``: markdown (the worse, missing and better cells; ``all_cells``: every one), json
+    """compare's output in ``fmt``: markdown (the worse, missing, changed and better cells; ``all_cells``: every one), json
     (headline, notes and every cell) or csv (every cell)."""
     from marinebench.results.compare import headline, to_markdown
 

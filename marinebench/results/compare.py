@@ -7,6 +7,9 @@ change (or, ``interval="t"`` and by default between two variants, the paired Stu
 - ``same``: |change| <= atol + rtol * |baseline| (or the CI contains zero);
 - ``worse`` / ``better``: outside the tolerance *and* the CI excludes zero (with a single seed, the
   tolerance alone decides); direction from :data:`HIGHER_IS_BETTER` (lower is better by default);
+- ``changed``: the same for a metric with no better side, the DP observers' per-run diagnostics
+  (:data:`~marinebench.config.DIAGNOSTICS`: how often the resetting observer reset or jumped, the condition of
+  its reset): listed, never failing the gate;
 - ``missing``: in the baseline only; ``new``: in the candidate only.
 
 A run that diverged in the candidate but not in the baseline is ``worse``, and so is a claim of the paper
@@ -32,16 +35,18 @@ import pandas as pd
 from pydantic import TypeAdapter, ValidationError
 from scipy.stats import t as student_t
 
-from marinebench.config import AnyScenario, Metric
+from marinebench.config import DIAGNOSTICS, AnyScenario, Metric
 from marinebench.errors import MarinebenchError
 from marinebench.metrics.stats import mean_ci
 from marinebench.results.stored import read_manifest, read_metrics, read_resolved
 from marinebench.results.tables import md_row
 
 Interval = Literal["bootstrap", "t"]  # the CI of a paired comparison (compare --interval)
-HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs) is an error: lower is better
+HIGHER_IS_BETTER: set[str] = set()  # every metric so far (std, rmse, max_abs, J_tot, INT) is a cost: lower is better
+NO_BETTER_SIDE = frozenset(DIAGNOSTICS)  # counts and conditions the observer reports: a change is neither
 KEYS = ["experiment", "scenario", "variant", "signal", "metric"]
-SEVERITY = {"worse": 0, "missing": 1, "new": 2, "better": 3, "same": 4}
+SEVERITY = {"worse": 0, "missing": 1, "new": 2, "changed": 3, "better": 4, "same": 5}
+COUNTED = ("worse", "better", "same")  # verdicts of cells on both sides the headline always counts
 
 
 class CompareInputError(MarinebenchError):
@@ -292,7 +297,7 @@ def compare_frames(base: pd.DataFrame, cand: pd.DataFrame, tol: Tolerance = Tole
         elif within or not significant or np.isnan(change):
             verdict = "same"
         else:
-            verdict = "worse" if sign * change > 0 else "better"
+            verdict = "changed" if row["metric"] in NO_BETTER_SIDE else "worse" if sign * change > 0 else "better"
         row.update(baseline=bm, candidate=cm, change=change, rel_change=change / abs(bm) if bm else np.nan,
                    ci_low=lo, ci_high=hi, rel_ci_low=rel_lo, rel_ci_high=rel_hi, n=bv.size, n_candidate=cv.size,
                    unpaired=unpaired, diverged=diverged, verdict=verdict, narrow="")
@@ -307,7 +312,7 @@ def require_pairs(table: pd.DataFrame, message: str = "baseline and candidate ha
                   "scenario, variant, signal, metric) and no claim: are these the right directories?") -> None:
     """Refuse a comparison in which no cell and no claim is in both (``message``): a wrong directory or two variants
     never run side by side, not a passing gate."""
-    if not table["verdict"].isin(("worse", "better", "same")).any():
+    if not table["verdict"].isin((*COUNTED, "changed")).any():
         raise CompareInputError(message)
 
 
@@ -505,7 +510,9 @@ def _points(df: pd.DataFrame) -> list[str]:
 
 def headline(table: pd.DataFrame) -> str:
     counts = table["verdict"].value_counts()
-    parts = [f"{counts.get(v, 0)} {v}" for v in ("worse", "better", "same")]
+    parts = [f"{counts.get(v, 0)} {v}" for v in COUNTED]
+    if counts.get("changed", 0):
+        parts.insert(2, f"{counts['changed']} changed")
     whole = Counter(one_sided_experiments(table).values())
     for v in ("missing", "new"):
         if counts.get(v, 0):
@@ -538,7 +545,8 @@ def one_sided_experiments(table: pd.DataFrame) -> dict[str, str]:
     return {e: v for e, v in per.items() if v in ("missing", "new")}
 
 
-ICONS = {"worse": "**WORSE**", "better": "**better**", "same": "same", "missing": "**missing**", "new": "new"}
+ICONS = {"worse": "**WORSE**", "better": "**better**", "changed": "changed", "same": "same", "missing": "**missing**",
+         "new": "new"}
 
 
 def _row(r, paired: bool) -> str:
