@@ -4,7 +4,8 @@ An experiment YAML names a scenario file (``scenario: ../scenarios/x.yaml``) or 
 with overrides (``scenario: {from: ../scenarios/x.yaml, horizon: 10}``). ``--set dotted.key=value``
 edits the resolved document before validation; list items are addressed by index
 (``variants.0.observer.eps``) or by name (``variants[liu_eps0.1].observer.eps``), ``*`` stands for every key or
-item (``scenarios.*.horizon``). :func:`load_checked` then runs :func:`marinebench.preflight.preflight`, which
+item (``scenarios.*.horizon``); a whole world set to a scenario file (``scenario=../scenarios/y.yaml``) is read as the
+config's own reference, relative to the working directory (:func:`_set_world`). :func:`load_checked` then runs :func:`marinebench.preflight.preflight`, which
 solves every observer design and checks the step before anything runs.
 """
 
@@ -214,18 +215,19 @@ def _from_path(ref: Any, path: Path, seen: tuple[Path, ...], what: str) -> Path:
     return shown_path(bpath)  # errors in it then name it as the user would
 
 
-def _check_exists(resolved: Path, ref: str, path: Path, key: str, what: str) -> None:
-    """ConfigError at ``key`` of ``path`` unless the ``what`` file a reference ``ref`` names is a file."""
+def _check_exists(resolved: Path, ref: str, path: Path, key: str, what: str, against: str = "the file's folder") -> None:
+    """ConfigError at ``key`` of ``path`` unless the ``what`` file a reference ``ref`` names is a file (a relative
+    ``ref`` was looked for ``against`` a folder: the file's that holds it, or the working directory)."""
     if resolved.is_dir():
         raise ConfigError(path, key, f"{ref} is a folder, not a file")
     if not resolved.exists():
-        raise ConfigError(path, key, f"{what} file not found: {ref}{_looked_in(ref, resolved)}")
+        raise ConfigError(path, key, f"{what} file not found: {ref}{_looked_in(ref, resolved, against)}")
 
 
-def _looked_in(ref: str, resolved: Path) -> str:
+def _looked_in(ref: str, resolved: Path, against: str = "the file's folder") -> str:
     """Where a relative reference was looked for: against the folder of the file that holds it, which is not the
-    working directory a user may read it from."""
-    return "" if Path(ref).is_absolute() else f" (relative to the file's folder: looked for {resolved})"
+    working directory a user may read it from (or, for a ``--set``, against the working directory)."""
+    return "" if Path(ref).is_absolute() else f" (relative to {against}: looked for {resolved})"
 
 
 def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
@@ -237,16 +239,22 @@ def read_scenario(path: Path, _seen: tuple[Path, ...] = ()) -> dict[str, Any]:
     return _deep_merge(read_scenario(bpath, (*_seen, path.resolve())), doc)
 
 
-def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path]) -> Any:
-    """Replace a scenario reference (``file`` or ``{from: file, overrides...}``) by the merged document."""
-    if not (isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen)):
+def _is_reference(scen: Any) -> bool:
+    """A world given as a scenario file (``file`` or ``{from: file, overrides...}``), not as its keys."""
+    return isinstance(scen, str) or (isinstance(scen, dict) and "from" in scen)
+
+
+def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path], folder: Path | None = None) -> Any:
+    """Replace a scenario reference (``file`` or ``{from: file, overrides...}``) by the merged document; a relative
+    file is looked for in ``folder`` (default: that of ``path``, the file that names it)."""
+    if not _is_reference(scen):
         return scen
     ref = scen if isinstance(scen, str) else scen["from"]
     overrides = {} if isinstance(scen, str) else {k: v for k, v in scen.items() if k != "from"}
     if not isinstance(ref, str):
         raise ConfigError(path, f"{key}.from", "expected a file path")
-    spath = (path.parent / ref).resolve()
-    _check_exists(spath, ref, path, key, "scenario")
+    spath = ((path.parent if folder is None else folder) / ref).resolve()
+    _check_exists(spath, ref, path, key, "scenario", "the file's folder" if folder is None else "the working directory")
     origins[key] = shown_path(spath)
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path
@@ -304,10 +312,42 @@ def resolve_document(path: Path, sets: list[str] = (), profile: str | None = Non
     doc.setdefault("name", path.stem)
     if profile is not None:
         _apply_profile(doc, profile, path, origins)
+    _apply_sets(doc, sets, origins)
+    return doc, origins
+
+
+def _apply_sets(doc: dict, sets: list[str], origins: dict[str, Path]) -> None:
+    """The command line's ``--set`` settings, in order, each key's origin ``--set`` (a whole world's: its file)."""
     for s in sets:
         for dotted in apply_set(doc, s):
-            origins["--set " + dotted] = Path("--set")
-    return doc, origins
+            if not _set_world(doc, dotted, Path("--set"), origins, Path.cwd()):
+                origins["--set " + dotted] = Path("--set")
+
+
+def _set_world(doc: dict, dotted: str, path: Path, origins: dict[str, Path], folder: Path | None = None) -> bool:
+    """A setting of a whole world (``scenario``, ``scenarios.<name>``) to a scenario file, ``scenario=FILE`` or
+    ``scenario={from: FILE, horizon: 10}``: the file inlined as the config's own reference would be, the origins of
+    the world it replaces forgotten. A relative FILE is looked for in ``folder``: the working directory for
+    ``--set`` (``path`` is ``--set``), the config's folder for a profile's setting (``path`` is the config). False
+    for any other setting; a world's ``from`` alone is refused (it was read with the world's file)."""
+    parts = dotted.split(".")
+    is_world = parts == ["scenario"] or (len(parts) == 2 and parts[0] == "scenarios")
+    if parts[-1] == "from" and (parts[:-1] == ["scenario"] or (len(parts) == 3 and parts[0] == "scenarios")):
+        world = ".".join(parts[:-1])
+        raise ConfigError(path, dotted, f"a world's 'from' was read with its file: set the whole world to run on "
+                          f"another scenario file, {world}=FILE (or '{world}={{from: FILE, horizon: 10}}' to change "
+                          "some of its keys)")
+    node = doc.get(parts[0]) if len(parts) == 1 else (doc.get("scenarios") or {}).get(parts[-1])
+    if not (is_world and _is_reference(node)):
+        return False
+    for origin in [o for o in origins if o.split(" ", 1)[-1] == dotted or o.split(" ", 1)[-1].startswith(dotted + ".")]:
+        del origins[origin]  # what the config (or an earlier setting) said of the world replaced
+    world = _inline_scenario(node, path, dotted, origins, folder)
+    if len(parts) == 1:
+        doc["scenario"] = world
+    else:
+        doc["scenarios"][parts[1]] = world
+    return True
 
 
 def _apply_profile(doc: dict, profile: str, path: Path, origins: dict[str, Path]) -> None:
@@ -319,7 +359,8 @@ def _apply_profile(doc: dict, profile: str, path: Path, origins: dict[str, Path]
     for i, assignment in enumerate(profiles[profile]):
         try:
             for dotted in apply_set(doc, assignment):
-                origins["override " + dotted] = path
+                if not _set_world(doc, dotted, path, origins):
+                    origins["override " + dotted] = path
         except ConfigError as exc:
             raise ConfigError(path, f"profiles.{profile}.{i}", f"{exc.key}: {exc.message}") from None
 

@@ -692,6 +692,41 @@ def test_set_into_the_wrong_world_says_where_the_key_goes():
     assert res.exit_code == 2 and "one world, under 'scenario': set scenario.horizon" in res.output
 
 
+def test_a_whole_world_set_to_a_scenario_file_is_read_as_the_configs_own_reference(tmp_path, monkeypatch):
+    """``--set scenario=FILE`` runs a config in another world: FILE (its own ``from:`` too, or ``{from: FILE, key:
+    value}``) read as the config's reference would be, relative to the working directory; its keys' errors name it,
+    and what the config said of the world it replaces is forgotten. In a profile, FILE is relative to the config."""
+    import marinebench as mb
+
+    monkeypatch.chdir(ROOT / "scenarios")
+    exp = mb.load(ROOT / "configs" / "torben_fig1.yaml", sets=["scenario={from: dp_sweep.yaml, horizon: 400}"])
+    assert (exp.scenario.name, exp.scenario.horizon) == ("dp_sweep", 400)
+    study = mb.load(ROOT / "configs" / "tijjani_table3.yaml", sets=["scenarios.S1=rov_s3.yaml"])
+    assert study.scenarios["S1"].model_dump(exclude={"name"}) == study.scenarios["S3"].model_dump(exclude={"name"})
+    (tmp_path / "short.yaml").write_text("from: " + str(ROOT / "scenarios" / "rov_s3.yaml") + "\nhorizon: -3\n")
+    config = str(ROOT / "configs" / "tijjani_observers.yaml")
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["validate", config, "--set", "scenario=short.yaml"])
+    assert res.exit_code == 2 and res.output.strip() == "error: short.yaml: scenario.horizon: Input should be greater than 0"
+    res = runner.invoke(app, ["validate", config, "--set", "scenario=rov_s9.yaml"])
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: --set: scenario: scenario file not found: rov_s9.yaml (relative to the working directory: looked for "
+        f"{tmp_path.resolve() / 'rov_s9.yaml'})")
+    res = runner.invoke(app, ["validate", config, "--set", "scenario.from=short.yaml"])
+    assert res.exit_code == 2 and "set the whole world to run on another scenario file, scenario=FILE" in res.output
+    doc = yaml.safe_load((ROOT / "configs" / "torben_fig1.yaml").read_text())
+    (tmp_path / "fig1.yaml").write_text(yaml.safe_dump(doc | {"scenario": str(ROOT / "scenarios" / "dp_impulse.yaml"),
+                                                              "profiles": {"swept": ["scenario=../sub/dp_sweep.yaml"]}}))
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "dp_sweep.yaml").write_text((ROOT / "scenarios" / "dp_sweep.yaml").read_text().replace(
+        "name: dp_sweep", "name: dp_sub"))
+    res = runner.invoke(app, ["validate", "fig1.yaml", "--profile", "swept"])
+    assert res.exit_code == 2 and "profiles.swept.0: scenario: scenario file not found: ../sub/dp_sweep.yaml (relative to " \
+        "the file's folder" in res.output, res.output  # the profile's file is the config's reference: ../ from tmp_path
+    (tmp_path / "fig1.yaml").write_text((tmp_path / "fig1.yaml").read_text().replace("../sub/", "sub/"))
+    assert mb.load("fig1.yaml", profile="swept").scenario.name == "dp_sub"
+
+
 def test_design_prints_the_solved_gains_without_simulating():
     """``design``: what the manifest records, recomputed for other settings with --set."""
     config = str(ROOT / "configs" / "tijjani_observers.yaml")
