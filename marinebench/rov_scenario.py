@@ -18,7 +18,7 @@ from collections.abc import Collection
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, create_model, model_validator
 
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
@@ -119,14 +119,18 @@ class RovScenario(ScenarioBase):
 
     def per_run_defaults(self) -> dict[str, float]:
         """Per-run world keys (a variant's ``world:``, ``world.<key>`` sweep parameters) and this scenario's value of
-        each: where the estimates start (``estimate_offset``, depth [m] and yaw [deg]) and the sensor noise levels."""
+        each: where the estimates start (``estimate_offset``, depth [m] and yaw [deg]), the sensor noise levels and
+        the plant's mismatch multipliers (``damping_scale``, ``buoyancy_scale``: S2-C2's, or a robustness sweep's)."""
         s = self.sensors
         return {"estimate_offset_depth": self.estimate_offset[0], "estimate_offset_yaw_deg": self.estimate_offset[1],
-                "depth_noise": s.depth_noise, "yaw_noise_deg": s.yaw_noise_deg, "gyro_noise_dps": s.gyro_noise_dps}
+                "depth_noise": s.depth_noise, "yaw_noise_deg": s.yaw_noise_deg, "gyro_noise_dps": s.gyro_noise_dps,
+                **{key: getattr(self, key) for key in PLANT_SCALES.model_fields}}
 
     def check_per_run(self, world: dict[str, float]) -> None:
-        """Per-run noise levels are bounded as the scenario's own ``sensors`` fields are (any finite offset goes)."""
+        """Per-run noise levels and plant multipliers are bounded as the scenario's own fields are (any finite
+        offset goes)."""
         RovSensors.model_validate(self.sensors.model_dump() | {k: v for k, v in world.items() if k in RovSensors.model_fields})
+        PLANT_SCALES.model_validate({k: v for k, v in world.items() if k in PLANT_SCALES.model_fields})
 
     def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """The thrusters' dynamics and where the CDO's and EO's estimates start (Fig. 2's verdicts depend on it; the
@@ -184,6 +188,11 @@ class RovScenario(ScenarioBase):
         return self
 
 
+# the per-run plant multipliers, each checked as the scenario's field is (an error's loc names it)
+PLANT_SCALES = create_model("PlantScales", **{key: (float, RovScenario.model_fields[key])
+                                              for key in ("damping_scale", "buoyancy_scale")})
+
+
 def _per_run(params, gain) -> np.ndarray:
     """``gain(p)`` for each run's settings ``p``, computed once per distinct setting (a CDO design solves an LMI)."""
     once = {}
@@ -211,6 +220,8 @@ class RovWorld:
         # std: depth, yaw, yaw rate
         self.draws, self.seed_index = draws, where
         self.noise_std = np.stack([own["depth_noise"], np.deg2rad(own["yaw_noise_deg"]), np.deg2rad(own["gyro_noise_dps"])], axis=1)
+        # the plant's (not the observers' or controllers') damping and net buoyancy, per run (Tijjani S2-C2)
+        self.damping_scale, self.net_buoyancy = own["damping_scale"], sc.vessel.net_buoyancy * own["buoyancy_scale"]
         self.random_load = np.zeros((B, 2))
         if sc.random_load is not None:
             rl = sc.random_load
@@ -344,8 +355,7 @@ class RovWorld:
         return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        b = self.sc.vessel.net_buoyancy * self.sc.buoyancy_scale
-        plant = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.sc.damping_scale, b)
+        plant = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.damping_scale, self.net_buoyancy)
         return np.concatenate([plant, self.observers_derivative(x)], axis=1), self.y, self.tau
 
     def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:

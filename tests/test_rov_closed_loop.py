@@ -6,7 +6,7 @@ import yaml
 
 from marinebench.errors import ConfigError
 from marinebench.experiments.runner import run
-from marinebench.loading import load_experiment
+from marinebench.loading import load_checked, load_experiment
 from marinebench.rov_scenario import Payload, Push, RandomLoad, RovScenario, RovSensors, RovWorld, min_jerk
 from marinebench.sim.recorders import ControlEnergy
 
@@ -167,6 +167,24 @@ def test_the_plant_sees_the_scenarios_damping_and_buoyancy_scales():
     want = w.plant.derivative(x[:, :4], w.tau, w.loads(0.0, x), 1.9, 7.0 * 2.5)[0]
     np.testing.assert_allclose(got, want, rtol=1e-14)
     assert not np.allclose(got, w.plant.derivative(x[:, :4], w.tau, w.loads(0.0, x), 1.9, 7.0 / 2.5)[0])
+
+
+def test_a_variants_plant_scales_hold_for_its_runs_only(tmp_path):
+    """damping_scale and buoyancy_scale are per-run world keys (a variant's world:, a world.<key> robustness sweep):
+    a run with S2-C2's 1.9 and 2.0 there is, to the bit, the run of a world that says so, beside a nominal run of the
+    same batch; a multiplier the scenario's field would refuse is refused naming the variant's key."""
+    rise = {"kind": "rise"}
+    scales = {"damping_scale": 1.9, "buoyancy_scale": 2.0}
+    exp, _ = experiment(tmp_path, [{"name": "nominal", "controller": rise},
+                                   {"name": "mismatch", "controller": rise, "world": scales}], "scenario.horizon=6")
+    world, _ = experiment(tmp_path, [{"name": "mismatch", "controller": rise}], "scenario.horizon=6",
+                          *(f"scenario.{key}={value}" for key, value in scales.items()))
+    both, alone = (run(e).metrics.set_index(["variant", "signal", "metric"])["value"] for e in (exp, world))
+    assert both["mismatch"].to_dict() == alone["mismatch"].to_dict()
+    assert both["nominal"]["depth"]["rmse"] != both["mismatch"]["depth"]["rmse"]
+    _, path = experiment(tmp_path, [{"name": "bad", "controller": rise, "world": {"buoyancy_scale": 0.0}}])
+    with pytest.raises(ConfigError, match=r"variants\.0\.world\.buoyancy_scale: Input should be greater than 0"):
+        load_checked(path)
 
 
 def test_cdo_and_eo_designs_report_their_gains_and_per_sample_figures():

@@ -155,7 +155,8 @@ def test_bad_world_sweep_keys_are_config_errors():
 
     refused(OBSERVERS, ["sweep.params.theta.key=world.gnss_sigma"], "theta",
             r"sweep\.params\.theta\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: "
-            r"estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, gyro_noise_dps\)")
+            r"estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, gyro_noise_dps, damping_scale, "
+            r"buoyancy_scale\)")
     refused(OBSERVERS, ["sweep.params.theta.key=world.depth_noise", "sweep.params.theta.range=[-0.001, 0.001]",
                         "sweep.params.theta.spacing=linear", "sweep.params.theta.probes=[]"], "theta",
             r"sweep\.params\.theta: theta=-0\.001: Input should be greater than or equal to 0")

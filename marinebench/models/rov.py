@@ -76,11 +76,12 @@ class LeonardLike:
         achieved = columns(p.n_vertical * f_v, p.n_horizontal * p.yaw_lever * f_h)
         return columns(f_v, f_h), achieved
 
-    def derivative(self, x: np.ndarray, tau: np.ndarray, f_ext: np.ndarray, scale_damping: float = 1.0,
-                   net_buoyancy: float | None = None) -> np.ndarray:
+    def derivative(self, x: np.ndarray, tau: np.ndarray, f_ext: np.ndarray, scale_damping: float | np.ndarray = 1.0,
+                   net_buoyancy: float | np.ndarray | None = None) -> np.ndarray:
         """``x_dot`` for state ``(B, 4)``, achieved thrust ``tau (B, 2)`` and external loads ``f_ext (B, 2)``.
 
-        ``scale_damping`` and ``net_buoyancy`` change the *plant* only (Tijjani scenario S2-C2).
+        ``scale_damping`` and ``net_buoyancy`` (scalars, or one value per run) change the *plant* only (Tijjani
+        scenario S2-C2).
         """
         p = self.p
         w, r = x[:, 2], x[:, 3]
