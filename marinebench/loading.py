@@ -337,7 +337,8 @@ def _set_world(doc: dict, dotted: str, path: Path, origins: dict[str, Path], fol
         raise ConfigError(path, dotted, f"a world's 'from' was read with its file: set the whole world to run on "
                           f"another scenario file, {world}=FILE (or '{world}={{from: FILE, horizon: 10}}' to change "
                           "some of its keys)")
-    node = doc.get(parts[0]) if len(parts) == 1 else (doc.get("scenarios") or {}).get(parts[-1])
+    worlds = doc.get("scenarios") if isinstance(doc.get("scenarios"), dict) else {}  # a list there: pydantic's error
+    node = doc.get("scenario") if len(parts) == 1 else worlds.get(parts[-1])
     if not (is_world and _is_reference(node)):
         return False
     for origin in [o for o in origins if o.split(" ", 1)[-1] == dotted or o.split(" ", 1)[-1].startswith(dotted + ".")]:

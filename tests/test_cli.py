@@ -714,6 +714,9 @@ def test_a_whole_world_set_to_a_scenario_file_is_read_as_the_configs_own_referen
         f"{tmp_path.resolve() / 'rov_s9.yaml'})")
     res = runner.invoke(app, ["validate", config, "--set", "scenario.from=short.yaml"])
     assert res.exit_code == 2 and "set the whole world to run on another scenario file, scenario=FILE" in res.output
+    (tmp_path / "listed.yaml").write_text("scenarios: [a]\nvariants: []\n")  # worlds in a list: one line, no traceback
+    res = runner.invoke(app, ["validate", "listed.yaml", "--set", "scenarios.0=short.yaml"])
+    assert res.exit_code == 2 and res.output.startswith("error: --set: scenarios: Input should be a valid dictionary")
     doc = yaml.safe_load((ROOT / "configs" / "torben_fig1.yaml").read_text())
     (tmp_path / "fig1.yaml").write_text(yaml.safe_dump(doc | {"scenario": str(ROOT / "scenarios" / "dp_impulse.yaml"),
                                                               "profiles": {"swept": ["scenario=../sub/dp_sweep.yaml"]}}))
