@@ -258,7 +258,11 @@ def _inline_scenario(scen: Any, path: Path, key: str, origins: dict[str, Path], 
     origins[key] = shown_path(spath)
     for dotted in _leaf_paths(overrides, key):
         origins["override " + dotted] = path
-    return _deep_merge(read_scenario(spath), overrides)
+    world = read_scenario(spath)
+    if "variants" in world:
+        raise ConfigError(path, key, f"{ref} is an experiment file (it has variants), not a scenario: name the scenario "
+                          "file it runs in (its 'scenario:')")
+    return _deep_merge(world, overrides)
 
 
 def _base_experiment(doc: dict, path: Path, seen: tuple[Path, ...]) -> tuple[dict, dict[str, Path]]:

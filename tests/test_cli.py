@@ -712,6 +712,10 @@ def test_a_whole_world_set_to_a_scenario_file_is_read_as_the_configs_own_referen
     assert res.exit_code == 2 and res.output.strip() == (
         f"error: --set: scenario: scenario file not found: rov_s9.yaml (relative to the working directory: looked for "
         f"{tmp_path.resolve() / 'rov_s9.yaml'})")
+    res = runner.invoke(app, ["validate", config, "--set", f"scenario={config}"])  # an experiment, by mistake
+    assert res.exit_code == 2 and res.output.strip() == (
+        f"error: --set: scenario: {config} is an experiment file (it has variants), not a scenario: name the scenario "
+        "file it runs in (its 'scenario:')")
     res = runner.invoke(app, ["validate", config, "--set", "scenario.from=short.yaml"])
     assert res.exit_code == 2 and "set the whole world to run on another scenario file, scenario=FILE" in res.output
     (tmp_path / "listed.yaml").write_text("scenarios: [a]\nvariants: []\n")  # worlds in a list: one line, no traceback
