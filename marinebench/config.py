@@ -59,7 +59,7 @@ class Variant(BaseModel):
     world: dict[str, float] = Field(
         default_factory=dict, description="per-run world parameters: position_noise_scale (open_loop_asv); gnss_sigma, "
         "heading_sigma_deg (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
-        "gyro_noise_dps (rov_tracking)"
+        "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking)"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
     scenarios: list[str] | None = Field(
