@@ -335,24 +335,24 @@ def _set_world(doc: dict, dotted: str, path: Path, origins: dict[str, Path], fol
     ``--set`` (``path`` is ``--set``), the config's folder for a profile's setting (``path`` is the config). False
     for any other setting; a world's ``from`` alone is refused (it was read with the world's file)."""
     parts = dotted.split(".")
-    is_world = parts == ["scenario"] or (len(parts) == 2 and parts[0] == "scenarios")
-    if parts[-1] == "from" and (parts[:-1] == ["scenario"] or (len(parts) == 3 and parts[0] == "scenarios")):
+    if parts[-1] == "from" and _is_world(parts[:-1]):
         world = ".".join(parts[:-1])
         raise ConfigError(path, dotted, f"a world's 'from' was read with its file: set the whole world to run on "
                           f"another scenario file, {world}=FILE (or '{world}={{from: FILE, horizon: 10}}' to change "
                           "some of its keys)")
-    worlds = doc.get("scenarios") if isinstance(doc.get("scenarios"), dict) else {}  # a list there: pydantic's error
-    node = doc.get("scenario") if len(parts) == 1 else worlds.get(parts[-1])
-    if not (is_world and _is_reference(node)):
+    # the mapping that holds the world: the document's, or its study's (a list there: pydantic's error follows)
+    holder = doc if len(parts) == 1 else doc.get("scenarios") if isinstance(doc.get("scenarios"), dict) else {}
+    if not (_is_world(parts) and _is_reference(holder.get(parts[-1]))):
         return False
     for origin in [o for o in origins if o.split(" ", 1)[-1] == dotted or o.split(" ", 1)[-1].startswith(dotted + ".")]:
         del origins[origin]  # what the config (or an earlier setting) said of the world replaced
-    world = _inline_scenario(node, path, dotted, origins, folder)
-    if len(parts) == 1:
-        doc["scenario"] = world
-    else:
-        doc["scenarios"][parts[1]] = world
+    holder[parts[-1]] = _inline_scenario(holder[parts[-1]], path, dotted, origins, folder)
     return True
+
+
+def _is_world(parts: list[str]) -> bool:
+    """A dotted key's parts name a whole world: ``scenario``, or ``scenarios.<name>``."""
+    return parts == ["scenario"] or (len(parts) == 2 and parts[0] == "scenarios")
 
 
 def _apply_profile(doc: dict, profile: str, path: Path, origins: dict[str, Path]) -> None:
