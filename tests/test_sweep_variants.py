@@ -143,6 +143,14 @@ def test_a_sweep_of_several_variants_runs_each_at_every_point_as_alone(tmp_path)
     b = m[m["sweep_variant"] == "proposed_d2.2"]
     key = ["param_value", "seed", "signal", "metric"]
     np.testing.assert_array_equal(a.sort_values(key)["value"], b.sort_values(key)["value"])
+    # and compare pairs the two folders by variant and point: the sweep alone's points are its variant's (before: no
+    # cell in common, exit 2), the other variant's are new
+    res = CliRunner().invoke(app, ["compare", str(alone), str(d), "--metric", "std", "--format", "json"])
+    assert res.exit_code == 0, res.output
+    cells = pd.DataFrame(json.loads(res.output)["cells"])
+    by_verdict = cells.groupby("verdict")["variant"].agg(set).to_dict()
+    assert by_verdict == {"same": {"proposed_d2.2: noise=0", "proposed_d2.2: noise=2"},
+                          "new": {"liu_eps0.1: noise=0", "liu_eps0.1: noise=2"}}
     # compare --variants pairs the two variants point by point and seed by seed
     res = CliRunner().invoke(app, ["compare", str(d), "--variants", "liu_eps0.1", "proposed_d2.2", "--metric", "std",
                                    "--format", "json"])

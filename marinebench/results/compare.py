@@ -424,6 +424,8 @@ def compare_dirs(baseline: Path, candidate: Path, metrics: list[str] | None = No
             # another world, cells pair only by variant (a sweep's by point), and a line under the table names both.
             cdirs, cman, cframe["experiment"] = {name: cdirs[other]}, {name: cman[other]}, name
             renamed = f"Compared as one experiment: '{other}' (candidate) as '{name}' (baseline), results of one config."
+            if _side_by_side(bframe).any() or _side_by_side(cframe).any():  # e.g. a sweep of one of its variants
+                bframe, cframe = _sweep_variant_named(bframe, bman), _sweep_variant_named(cframe, cman)
     check_compatible(bdirs, cdirs, paired)
     table = compare_frames(*select_metrics([by_point(bframe), by_point(cframe)], metrics), tol, paired=paired,
                            interval=interval)
@@ -451,7 +453,7 @@ def compare_variants(results: Path, a: str, b: str, metrics: list[str] | None = 
     points (``variant``: ``<point>: b vs a``, e.g. ``noise=0.6: proposed_d2.2 vs liu_eps0.1``); a tree (``results/``)
     may hold both kinds of folder. Two variants that share no cell are refused (:func:`require_pairs`)."""
     [df] = select_metrics([load_metrics(find_results(results))], metrics, claims=False)
-    swept = df["sweep_variant"].notna() if "sweep_variant" in df.columns else pd.Series(False, index=df.index)
+    swept = _side_by_side(df)
     names = df["sweep_variant"].where(swept, df["variant"]) if swept.any() else df["variant"]  # a tree may hold both
     for v in (a, b):
         if v not in set(names):
@@ -475,6 +477,24 @@ def _variant_names(df: pd.DataFrame, names: pd.Series, swept: pd.Series, most: i
     of_runs = df["param"].isna() | swept if "param" in df.columns else pd.Series(True, index=df.index)
     have = sorted(set(names[of_runs])) or sorted(set(names))
     return ", ".join(have[:most]) + (f", … ({len(have)} in all)" if len(have) > most else "")
+
+
+def _side_by_side(df: pd.DataFrame) -> pd.Series:
+    """The rows of sweeps of several variants side by side (``sweep --variants``): those naming their ``sweep_variant``."""
+    return df["sweep_variant"].notna() if "sweep_variant" in df.columns else pd.Series(False, index=df.index)
+
+
+def _sweep_variant_named(df: pd.DataFrame, manifests: dict[str, dict]) -> pd.DataFrame:
+    """A frame whose one-variant sweeps' rows name their variant (the manifest's one ``variants``) in ``sweep_variant``
+    as a sweep of several variants side by side does, so that the two kinds of folder pair by variant and point
+    (``proposed_d2.2: noise=0``), when :func:`compare_dirs` compares two folders of one config. Without a side by side
+    sweep on either side, points pair whatever their variant (two one-variant sweeps of two variants)."""
+    swept = df["param"].notna() if "param" in df.columns else pd.Series(False, index=df.index)
+    one = {name: m["variants"][0] for name, m in manifests.items() if len(m.get("variants") or []) == 1}
+    named = df["experiment"].map(one).where(swept & ~_side_by_side(df))
+    if named.isna().all():
+        return df
+    return df.assign(sweep_variant=df["sweep_variant"].fillna(named) if "sweep_variant" in df.columns else named)
 
 
 def by_point(df: pd.DataFrame) -> pd.DataFrame:
