@@ -7,6 +7,7 @@ from marinebench.batch import columns
 from marinebench.errors import StiffnessError
 from marinebench.experiments.runner import run
 from marinebench.loading import load_experiment
+from marinebench.observers.liu_eso import LiuEsoObserver, LiuEsoTuning
 from marinebench.sim.engine import ObserverGroup, check_step, rk4_step
 
 from .conftest import ROOT, accepts_and_refuses, md_row
@@ -76,6 +77,21 @@ def test_step_check_accepts_dt_lambda_at_the_limit_and_names_the_largest_step():
     assert str(e.value) == ("dt=0.25 s is too large for observer poles up to |lambda|=4 rad/s (dt*|lambda| = 1 > 0.5); "
                             "use dt <= 0.125")
     assert check_step([], 1e3, 0.5) == 0.0
+
+
+def test_a_multiple_pole_at_the_limit_passes_and_a_refusal_suggests_a_step_that_passes():
+    """Liu's ESO at eps = 0.1 has a triple pole at exactly 10 rad/s, computed as 10.0000248 (a triple root is found to
+    about machine epsilon^(1/3)): dt = 0.05 s is at the limit 0.5 and passes (before: refused, 'dt*|lambda| = 0.5 >
+    0.5; use dt <= 0.05', the step it refused). A refusal's suggested step passes, rounded down, not to nearest."""
+    liu = LiuEsoObserver([LiuEsoTuning(eps=0.1)], np.eye(3))
+    assert 10.0 < liu.max_rate() < 10.0 * (1 + 1e-5)
+    assert check_step([ObserverGroup(liu, np.arange(1))], 0.05, 0.5) == liu.max_rate()
+    # 0.5 / 47.549 = 0.010516 (0.0105 either way); 0.5 / 47.63 = 0.010498, to nearest 0.0105, which is refused
+    for r, suggested in ((47.549, "0.0105"), (47.63, "0.0104"), (4.0, "0.125")):
+        with pytest.raises(StiffnessError) as e:
+            check_step([ObserverGroup(_Rate(r), np.arange(1))], 1.0, 0.5)
+        assert str(e.value).endswith(f"use dt <= {suggested}")
+        assert check_step([ObserverGroup(_Rate(r), np.arange(1))], float(suggested), 0.5) == r
 
 
 class _WorldWithObservers:
