@@ -70,8 +70,11 @@ class Variant(BaseModel):
     def _one_subject(self) -> Variant:
         if self.observer is None and self.controller is None:
             raise ValueError("give an 'observer' or a 'controller'")
-        if self.controller is not None and self.observer is not None and self.observer.kind not in ("cdo", "eo"):
-            raise ValueError(f"a closed-loop variant can be observed through 'cdo' or 'eo', not '{self.observer.kind}'")
+        if self.controller is not None and self.observer is not None and self.observer.kind not in ("cdo", "eo", "custom"):
+            raise ValueError(f"a closed-loop variant can be observed through 'cdo', 'eo' or 'custom', not '{self.observer.kind}'")
+        if self.controller is not None and self.controller.feedback == "custom" and getattr(self.observer, "kind", None) != "custom":
+            raise ValueError("feedback 'custom' feeds the controller the variant's own observer: give observer: "
+                             "{kind: custom, source: file.py:Class}")
         return self
 
 
@@ -503,7 +506,7 @@ class Experiment(BaseModel):
         worlds = [self.scenario] if self.scenario is not None else list(self.scenarios.values())
         if not worlds:
             return
-        default = [s for v in self.variants if v.observer is not None
+        default = [s for v in self.variants if v.observer is not None and v.controller is None
                    for s in (v.observer.estimated_signals() if v.observer.kind == "custom" else SIGNALS_OF.get(v.observer.kind, ()))]
         truth = TRUTH_SIGNALS.get(worlds[0].kind)
         default = [s for s in dict.fromkeys(default) if truth is None or s in truth] or DEFAULT_SIGNALS[worlds[0].kind]

@@ -179,14 +179,15 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
                 built = v.controller.build(1)
             with _user_code(file, f"variants.{i}.controller.source"):
                 check_controller(built, exp.scenario.control_period)
+        if v.observer is not None and v.observer.kind == "custom":
+            _preflight_rov_observer(exp, file, i, v)
         return None
     if v.observer.kind not in (usable := observer_kinds_for(exp.scenario)):
         raise ConfigError(file, f"variants.{i}.observer.kind", f"'{v.observer.kind}' does not apply to scenario kind "
                           f"{exp.scenario.kind} (its observers: {', '.join(sorted(usable))})")
     custom = v.observer.kind == "custom"
-    if custom and exp.scenario.kind not in (own := observer_class(v.observer.source).scenario_kinds):
-        raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(v.observer.source)[1]} does not apply "
-                          f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
+    if custom:
+        _check_applies(exp, file, i, v.observer.source)
     with _numerics(file, f"variants.{i}.observer", "no design for these values",
                    f"variants.{i}.observer.params" if custom else None):
         group = ObserverGroup(make_observer(v.observer.kind, [v.observer], exp.scenario, plant, wants_lumped(exp)), [0])
@@ -196,6 +197,28 @@ def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: A
     return group
 
 
+def _check_applies(exp: Experiment, file: Path, i: int, source: str) -> None:
+    """A custom observer class applies to the scenario's kind (its ``scenario_kinds``)."""
+    if exp.scenario.kind not in (own := observer_class(source).scenario_kinds):
+        raise ConfigError(file, f"variants.{i}.observer.source", f"{split_source(source)[1]} does not apply "
+                          f"to scenario kind {exp.scenario.kind} (its scenario_kinds: {', '.join(own)})")
+
+
+def _preflight_rov_observer(exp: Experiment, file: Path, i: int, v: Variant) -> None:
+    """A closed-loop variant's custom observer (``observers/custom_rov.py``): it applies to the world, its constructor
+    takes its params, and it answers as the protocol says for the ROV's two DOF, its signals the ROV's estimates."""
+    from marinebench.observers.custom_rov import checked, observer_plant
+
+    _check_applies(exp, file, i, v.observer.source)
+    world = exp.scenario.per_run_defaults() | v.world
+    start = [[exp.scenario.depth_ref[0][1] + world["estimate_offset_depth"],
+              np.deg2rad(exp.scenario.yaw_ref_deg[0][1] + world["estimate_offset_yaw_deg"])]]
+    with _user_code(file, f"variants.{i}.observer.params"):  # its constructor refusing its params
+        built = observer_class(v.observer.source)([v.observer.params], observer_plant(exp.scenario, start), exp.scenario.dt)
+    with _user_code(file, f"variants.{i}.observer.source"):
+        check_observer(checked(built, 1), 1, dof=2)
+
+
 def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
     """Solve the scenario's CDO design (LMIs (39)-(40)) and each distinct per-variant CDO override's."""
     failure = "the CDO design fails for these values"
@@ -203,7 +226,7 @@ def _preflight_cdo(exp: Experiment, file: Path, key: str, positions: list[int]) 
         exp.scenario.cdo_design()
     checked = set()
     for i, v in zip(positions, exp.variants):
-        if v.observer is None or not v.observer.cdo:
+        if v.observer is None or v.observer.kind == "custom" or not v.observer.cdo:
             continue
         cdo = v.observer.resolve(exp.scenario)[0]
         if (fingerprint := cdo.model_dump_json()) in checked:

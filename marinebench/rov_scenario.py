@@ -2,13 +2,14 @@
 
 The controllers are part of the world: each run's controller (RISE or S+RISE, ``controllers/spec.py``) runs
 every ``control_period`` on the held sensor samples (depth every 50 ms, attitude every 40 ms, Tijjani
-Table I) or on the CDO/EO estimates (``observers/cdo.py``, integrated with the plant), and its command goes
-through the thrust allocation and saturation. Measurement-fed controllers get rates by differencing the
-samples (default), from a gyro, or the true rate (``sensors.depth_rate``, ``sensors.yaw_rate``).
+Table I) or on the CDO/EO estimates (``observers/cdo.py``, integrated with the plant; or a custom observer's,
+``observers/custom_rov.py``), and its command goes through the thrust allocation and saturation. Measurement-fed
+controllers get rates by differencing the samples (default), from a gyro, or the true rate (``sensors.depth_rate``,
+``sensors.yaw_rate``).
 
 Truth signals ``depth``, ``yaw`` (and the achieved ``tau_depth``, ``tau_yaw``); the reference is exposed
-as the "estimate" of ``depth`` and ``yaw`` (or, for runs observed through the CDO or the EO, that
-observer's estimate), so the RMSE recorder gives the tracking RMSE of Table III.
+as the "estimate" of ``depth`` and ``yaw`` (or, for runs observed through the CDO, the EO or a custom observer,
+that observer's estimate), so the RMSE recorder gives the tracking RMSE of Table III.
 """
 
 from __future__ import annotations
@@ -22,12 +23,13 @@ from pydantic import BaseModel, Field, create_model, model_validator
 
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
+from marinebench.observers.custom_rov import CustomRovObservers
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.settings import STRICT
 
 ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
-OBSERVE = {None: 0, "cdo": 1, "eo": 2}
+OBSERVE = {None: 0, "cdo": 1, "eo": 2, "custom": 3}  # the estimate a run reports: the reference (none) or an observer's
 
 
 def min_jerk(t: float, points: list[tuple[float, float]]) -> tuple[float, float]:
@@ -238,28 +240,34 @@ class RovWorld:
         self.feedforward = [spec.feedforward_mask() for spec, _ in controllers]
         self.every = tuple(round(h / sc.dt) for _, h in sc.sample_periods())
         self.control_every = round(sc.control_period / sc.dt)
-        # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3)
-        self.x0 = np.zeros((B, 4 + 6 + 2 + 6))
-        self.x0[:, 0], self.x0[:, 1] = sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])
+        self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
+        pose = np.array([sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])])
         offset = np.stack([own["estimate_offset_depth"], np.deg2rad(own["estimate_offset_yaw_deg"])], axis=1)
+        start = pose + offset  # (B, 2): the observers start at the pose plus an offset
+        observers = [None] * B if observers is None else observers
+        # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3) | then the
+        # state of the runs' observers of your own (kind: custom), if any
+        self.custom = CustomRovObservers(observers, sc, start, column=4 + 6 + 2 + 6)
+        self.x0 = np.zeros((B, self.custom.start + self.custom.width))
+        self.x0[:, 0:2] = pose
         cdo, w = self.cdo_view(self.x0)
         eo = self.eo_view(self.x0)
-        cdo[:, :, 0] = eo[:, :, 0] = self.x0[:, 0:2] + offset  # the observers start at the pose plus an offset
+        cdo[:, :, 0] = eo[:, :, 0] = start
         w[:] = self.x0[:, 0:2]
-        self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
-        # per run: the observer it is seen through (0 none, 1 CDO, 2 EO) and its CDO/EO (the scenario's, or the
-        # variant's settings over them): injection gains (B, 1, 3), predictor gain K_w (B, 1)
-        observers = [None] * B if observers is None else observers
+        self.custom.init(self.x0)
+        # per run: the observer it is seen through (0 none, 1 CDO, 2 EO, 3 custom) and its CDO/EO (the scenario's,
+        # or the variant's settings over them): injection gains (B, 1, 3), predictor gain K_w (B, 1)
         self.observe = np.array([OBSERVE[o.kind if o is not None else None] for o in observers])
-        cdos, eos = zip(*[(sc.cdo, sc.eo) if o is None else o.resolve(sc) for o in observers])
+        cdos, eos = zip(*[(sc.cdo, sc.eo) if o is None or o.kind == "custom" else o.resolve(sc) for o in observers])
         self.cdo_gain = _per_run(cdos, CdoParams.injection)[:, None]
         self.k_w = np.array([[c.k_w] for c in cdos])
         self.eo_gain = _per_run(eos, EoParams.gain)[:, None]
         self._rates = np.maximum(_per_run(cdos, CdoParams.max_rate), _per_run(eos, EoParams.max_rate))
+        self._rates = np.maximum(self._rates, self.custom.rates())
         self.feedback = [spec.feedback for spec, _ in controllers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
-        self.at_sample = np.repeat(self.x0[None, :, :2], 3, axis=0)  # reference, CDO, EO estimate at the last sample
+        self.at_sample = np.repeat(self.x0[None, :, :2], 4, axis=0)  # reference, CDO, EO, custom estimate at the last sample
         self.tau = np.zeros((B, 2))  # achieved thrust (after allocation, saturation and the thrusters' lag)
         self.tau_cmd = np.zeros((B, 2))  # allocated and saturated command (what the observers take as input)
         lag = sc.vessel.thrust_time_constant
@@ -269,7 +277,7 @@ class RovWorld:
 
     def observer_rates(self) -> np.ndarray:
         """Per run, the largest |pole| of the observers this world integrates with the plant (the CDO with its
-        predictor, the EO; every run carries both), for the engine's step check."""
+        predictor, the EO, every run carries both; a custom observer's ``max_rate()``), for the engine's step check."""
         return self._rates
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -304,24 +312,27 @@ class RovWorld:
         if self.sc.random_load is not None:
             self.random_load = self.load_sequence[self.seed_index, k // self.load_every]
         sampled = [ch for ch, every in enumerate(self.every) if k % every == 0]
-        control = k % self.control_every == 0
-        if sampled or control:
-            self._sample_and_control(k, t, x, sampled, control)
+        if sampled:
+            self._sample(k, t, x, sampled)
+        self.custom.step(x, self.y, self.tau_cmd, k)  # discrete custom observers, between the samples and the command
+        if k % self.control_every == 0:
+            self._control(t, x)
         if self.thrust_response < 1.0:  # the lag one step on (exact for the held command), held over the step
             self.tau = self.tau + (self.tau_cmd - self.tau) * self.thrust_response
         else:
             self.tau = self.tau_cmd
 
-    def _sample_and_control(self, k: int, t: float, x: np.ndarray, sampled: list[int], control: bool) -> None:
-        """Take the samples due at step ``k`` (the channels ``sampled``) and, when ``control``, the controllers'
-        new commands."""
-        ref, ref_dot = self.reference(t)
+    def _sample(self, k: int, t: float, x: np.ndarray, sampled: list[int]) -> None:
+        """Take the samples due at step ``k`` (the channels ``sampled``)."""
+        ref, _ = self.reference(t)
         cdo, w = self.cdo_view(x)
         eo = self.eo_view(x)
+        mine = self.custom.estimates(x)
         for ch in sampled:
             self.at_sample[0, :, ch] = ref[ch]  # estimates just before the sample is taken
             self.at_sample[1, :, ch] = cdo[:, ch, 0]
             self.at_sample[2, :, ch] = eo[:, ch, 0]
+            self.at_sample[3, :, ch] = mine[:, ch, 0]
             y = x[:, ch] + self.noise(k, ch)
             source = self.sc.sensors.depth_rate if ch == 0 else self.sc.sensors.yaw_rate
             if source == "difference":
@@ -331,18 +342,21 @@ class RovWorld:
                 self.ydot[:, ch] = x[:, 2 + ch] + (self.noise(k, 2) if source == "gyro" else 0.0)
             self.y[:, ch] = y
             w[:, ch] = y  # the CDO's predictor restarts from each new sample
-        if control:
-            tau = np.zeros_like(self.tau)
-            for (ctrl, idx, scale), fb, ff in zip(self.groups, self.feedback, self.feedforward):
-                if fb == "measured":
-                    pos, vel = self.y[idx], self.ydot[idx]
-                else:
-                    est = cdo if fb == "cdo" else eo
-                    pos, vel = est[idx, :, 0], est[idx, :, 1]
-                tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
-                if ff.any():
-                    tau[idx] -= ff * self.m_hat * est[idx, :, 2]
-            _, self.tau_cmd = self.plant.allocate(tau)
+
+    def _control(self, t: float, x: np.ndarray) -> None:
+        """The controllers' new commands, from the held samples or an observer's estimates (``feedback``)."""
+        ref, ref_dot = self.reference(t)
+        tau = np.zeros_like(self.tau)
+        for (ctrl, idx, scale), fb, ff in zip(self.groups, self.feedback, self.feedforward):
+            if fb == "measured":
+                pos, vel = self.y[idx], self.ydot[idx]
+            else:
+                est = self.cdo_view(x)[0] if fb == "cdo" else self.eo_view(x) if fb == "eo" else self.custom.estimates(x)
+                pos, vel = est[idx, :, 0], est[idx, :, 1]
+            tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
+            if ff.any():
+                tau[idx] -= ff * self.m_hat * est[idx, :, 2]
+        _, self.tau_cmd = self.plant.allocate(tau)
 
     def observers_derivative(self, x: np.ndarray) -> np.ndarray:
         """CDO (eq. 38 with the predictor) and EO right-hand sides, per DOF."""
@@ -352,7 +366,8 @@ class RovWorld:
         d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
         d_w = cdo[:, :, 1] + self.k_w * (w - cdo[:, :, 0])
         d_eo = chain_rhs(eo, acc, self.eo_gain, self.y - eo[:, :, 0])
-        return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)], axis=1)
+        d_own = self.custom.derivative(x, self.y, self.tau_cmd)
+        return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6), d_own], axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         plant = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.damping_scale, self.net_buoyancy)
@@ -374,8 +389,9 @@ class RovWorld:
         cdo, _ = self.cdo_view(x)
         eo = self.eo_view(x)
         runs = np.arange(B)
-        pick = np.stack([np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0]])[self.observe, runs]  # (B, 2)
-        rate = np.stack([np.broadcast_to(ref_dot, (B, 2)), cdo[:, :, 1], eo[:, :, 1]])[self.observe, runs]
+        mine = self.custom.estimates(x)
+        pick = np.stack([np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0], mine[:, :, 0]])[self.observe, runs]
+        rate = np.stack([np.broadcast_to(ref_dot, (B, 2)), cdo[:, :, 1], eo[:, :, 1], mine[:, :, 1]])[self.observe, runs]
         meas = self.at_sample[self.observe, runs]
         return {"depth": pick[:, 0], "yaw": pick[:, 1], "depth_rate": rate[:, 0], "yaw_rate": rate[:, 1],
                 "depth_meas": meas[:, 0], "yaw_meas": meas[:, 1],

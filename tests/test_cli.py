@@ -238,7 +238,7 @@ BAD = {
                                ": table.relative: unknown variants ['nope']"),
     "no_observer": (lambda d: d["variants"][0].pop("observer"), ": variants.0: give an 'observer' or a 'controller'"),
     "closed_loop_through_liu": (lambda d: d["variants"][0].update(controller={"kind": "rise"}),
-                                ": variants.0: a closed-loop variant can be observed through 'cdo' or 'eo', not 'liu_eso'"),
+                                ": variants.0: a closed-loop variant can be observed through 'cdo', 'eo' or 'custom', not 'liu_eso'"),
     "scenario_from_not_a_path": (lambda d: d["scenario"].update({"from": 3}), ": scenario.from: expected a file path"),
     "experiment_from_not_a_path": (lambda d: d.update({"from": 3}), ": from: expected a path to the experiment file"),
 }

@@ -48,6 +48,8 @@ DP_UNITS = {"bias_units": "10kN", "moment_arm": "L"}
 # A custom observer (observers/custom.py): the example class users start from (exact for a disturbance constant in
 # the earth frame, so on the straight run, like the DP observers).
 EARTH_ESO = {"source": f"{ROOT / 'examples' / 'custom_observer' / 'earth_eso.py'}:EarthFrameEso"}
+# ... and the closed-loop one (observers/custom_rov.py): a sampled-data ESO, exact for a constant disturbance
+SAMPLED_ESO = {"source": f"{ROOT / 'examples' / 'custom_observer' / 'sampled_eso.py'}:SampledEso"}
 
 # (kind, scenario, tunings to check, early window, late window): one case per observer kind and scenario kind
 # it applies to (Bejarano's estimator and Liu's ESO also run in the DP world).
@@ -65,6 +67,7 @@ CASES = [
     ("custom", CLEAN_DP, [{**EARTH_ESO, "params": {"omega": 5.0}}], (0.0, 200.0), (350.0, None)),
     ("cdo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
     ("eo", CLEAN_ROV, [{}], (0.0, 0.01), (8.0, None)),
+    ("custom", CLEAN_ROV, [{**SAMPLED_ESO, "params": {"omega_depth": 10.0, "omega_yaw": 10.0}}], (0.0, 0.01), (8.0, None)),
 ]
 IDS = [f"{kind}-{load_scenario(scenario['from']).kind if 'from' in scenario else scenario['kind']}"
        for kind, scenario, *_ in CASES]

@@ -35,9 +35,9 @@ class ControllerSpec(BaseModel):
     ONLY_FOR: ClassVar[dict[str, tuple[str, ...]]] = {
         "preset": ("rise",), "depth": ("rise", "srise"), "yaw": ("rise", "srise"), "source": ("custom",), "params": ("custom",)}
     kind: Literal["rise", "srise", "custom"]
-    feedback: Literal["measured", "cdo", "eo"] = Field(
+    feedback: Literal["measured", "cdo", "eo", "custom"] = Field(
         "measured", description="measured: the held samples and rates (sensors.depth_rate / yaw_rate); cdo/eo: the "
-        "observer's estimates of eta and eta_dot"
+        "observer's estimates of eta and eta_dot; custom: those of the variant's own observer (observer: {kind: custom})"
     )
     output_scale: float | tuple[float, float] | Literal["inertia"] | None = Field(
         None, description="multiplies the command (depth, yaw) before allocation: 1 reads the gains as producing N "
@@ -64,7 +64,7 @@ class ControllerSpec(BaseModel):
     def _feedforward_needs_an_observer(self):
         if self.output_scale not in (None, "inertia") and (np.asarray(self.output_scale, dtype=float) <= 0).any():
             raise ValueError("output_scale must be positive")
-        if any(self.feedforward_mask()) and self.feedback == "measured":
+        if any(self.feedforward_mask()) and self.feedback in ("measured", "custom"):
             raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
         if self.kind == "custom" and self.source is None:
             raise ValueError("source: a custom controller needs source: file.py:ClassName")

@@ -47,7 +47,7 @@ OBSERVER_KINDS = {
 }  # a custom observer's class narrows its own: ``scenario_kinds`` (observers/custom.py)
 LUMPED_KINDS = ("bejarano", "liu_eso")  # observers of the lumped disturbance sigma (Bejarano eq. (6))
 # Observers a closed-loop world runs itself; a variant's `observer` picks the one whose estimates it reports.
-WORLD_OBSERVERS = {"rov_tracking": ("cdo", "eo")}
+WORLD_OBSERVERS = {"rov_tracking": ("cdo", "eo", "custom")}
 DESIGNS_UP_TO = 20  # variants whose per-variant Kalman or CDO/EO designs the manifest lists (a sweep has more)
 
 
@@ -180,13 +180,7 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
     for v in exp.variants:
         o = v.observer
         if v.controller is not None:
-            out[v.name] = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
-            if v.controller.kind == "custom":
-                sha, imports = source_record(v.controller.source)
-                out[v.name].update(controller_sha256=sha, controller_imports=imports)
-            if o is not None and (o.cdo or o.eo) and len(exp.variants) <= DESIGNS_UP_TO:
-                cdo, eo = o.resolve(exp.scenario)
-                out[v.name].update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))
+            out[v.name] = _closed_loop_design(exp, v)
         elif o.kind == "bejarano":
             rot, pos = bejarano.design(o)
             out[v.name] = {
@@ -211,6 +205,23 @@ def design_summary(exp: Experiment) -> dict[str, dict]:
             used = (0,) if design["one_gain"] else (0, 1)  # the NPO runs L1 alone (L2 = L1)
             out[v.name] = {f"K{j}_L{i + 1}": K[i].tolist() for i in used for j, K in enumerate(design["K"], start=1)}
             out[v.name].update({f"poles_L{i + 1}_re": sorted(np.round(obs.poles[i].real, 4).tolist()) for i in used})
+    return out
+
+
+def _closed_loop_design(exp: Experiment, v) -> dict:
+    """A closed-loop variant's controller and the observer it is seen through: a custom class's file, or its own CDO
+    and EO designs where it sets them (not for large sweeps)."""
+    o = v.observer
+    out = {"controller": v.controller.model_dump(), "observed_through": o.kind if o else None}
+    if v.controller.kind == "custom":
+        sha, imports = source_record(v.controller.source)
+        out.update(controller_sha256=sha, controller_imports=imports)
+    if o is not None and o.kind == "custom":
+        sha, imports = source_record(o.source)
+        out.update(observer={"source": o.source, "sha256": sha, "imports": imports, "params": o.params})
+    elif o is not None and (o.cdo or o.eo) and len(exp.variants) <= DESIGNS_UP_TO:
+        cdo, eo = o.resolve(exp.scenario)
+        out.update(cdo=exp.scenario.cdo_design(cdo), eo=exp.scenario.eo_design(eo))
     return out
 
 

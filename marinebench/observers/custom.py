@@ -6,7 +6,8 @@ mapping, one per run, so ``sweep`` can vary them: ``key: params.omega``). The cl
 protocol of :mod:`marinebench.observers.base`:
 
 ``scenario_kinds``
-    the world kinds it applies to: ``open_loop_asv`` (CyberShip II) and/or ``dp_supply`` (Torben's DP world);
+    the world kinds it applies to: ``open_loop_asv`` (CyberShip II) and/or ``dp_supply`` (Torben's DP world), or
+    ``rov_tracking`` (the closed-loop ROV world, two DOF: its own members, :mod:`marinebench.observers.custom_rov`);
 ``signals``
     a tuple of the names of the estimates ``outputs`` returns (``u``, ``v``, ``r``, ``sigma_u``, ... ``x``, ``b_x``, ...);
 ``__init__(self, params: list[dict], plant, dt: float)``
@@ -39,7 +40,7 @@ from marinebench.errors import ProtocolError
 from marinebench.plugins import split_source, user_class
 from marinebench.settings import STRICT
 
-SCENARIO_KINDS = ("open_loop_asv", "dp_supply")  # worlds whose observers take the measured pose and the thrust
+SCENARIO_KINDS = ("open_loop_asv", "dp_supply", "rov_tracking")  # worlds whose observers take a measured pose and the thrust
 MEMBERS = ("signals", "scenario_kinds", "n_state", "init", "outputs", "max_rate")
 
 
@@ -79,17 +80,17 @@ def whole_number(what: str, value: Any) -> int:
     return int(value)
 
 
-def check_built(observer: Any, n_runs: int) -> None:
+def check_built(observer: Any, n_runs: int, dof: int = 3) -> None:
     """What a built observer returns, checked before anything runs (a :class:`ProtocolError` naming the member):
     ``max_rate()`` a finite number >= 0, ``init()`` of shape (B, n_state), ``outputs(init())`` every declared signal as
-    (B,) and no other, ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust an array of shape
-    (B, n_state). Otherwise a mistake in the class would surface as a traceback deep in the engine, or as wrong
-    numbers."""
+    (B,) and no other, ``derivative`` (or ``step``) from ``init()`` at a zero pose and thrust (``dof`` columns each: 3,
+    or 2 on the ROV world) an array of shape (B, n_state). Otherwise a mistake in the class would surface as a
+    traceback deep in the engine, or as wrong numbers."""
     checked = observer if isinstance(observer, CheckedObserver) else CheckedObserver(observer, n_runs)
     checked.max_rate()
     x0 = checked.init()
     checked.outputs(x0)
-    y, tau = np.zeros((n_runs, 3)), np.zeros((n_runs, 3))  # a measured pose and a thrust, at the initial estimate
+    y, tau = np.zeros((n_runs, dof)), np.zeros((n_runs, dof))  # a measured pose and a thrust, at the initial estimate
     if checked.discrete:
         checked.step(x0.copy(), y, tau, 0)
     else:
