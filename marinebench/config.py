@@ -129,7 +129,8 @@ class JTotMetric(BaseModel):
 
 
 class IntMetric(BaseModel):
-    """Tijjani's INT = integral of tau^2 dt from the first time |e| <= tol, per DOF (signals depth, yaw)."""
+    """Tijjani's INT = integral of tau^2 dt from the first time |e| <= tol, per DOF (signals depth, yaw); e the
+    tracking error eta_d - eta, also in a variant that reports an observer's estimate."""
 
     model_config = STRICT
     kind: Literal["int"] = "int"

@@ -374,8 +374,12 @@ class RovWorld:
         return np.concatenate([plant, self.observers_derivative(x)], axis=1), self.y, self.tau
 
     def truth(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
+        """The true signals, and the reference ``depth_ref``, ``yaw_ref`` (the tracking error is theirs less the
+        truth whichever estimate a run reports: INT's start)."""
         z, psi = x[:, 0], x[:, 1]
+        ref, _ = self.reference(t)
         return {"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3],
+                "depth_ref": np.broadcast_to(ref[0], z.shape), "yaw_ref": np.broadcast_to(ref[1], z.shape),
                 "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
                 "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
                 "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi}

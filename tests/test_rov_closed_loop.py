@@ -215,14 +215,19 @@ def test_cdo_and_eo_designs_report_their_gains_and_per_sample_figures():
 
 
 def test_control_energy_starts_when_the_reference_is_reached():
+    """From the first time the tracking error (the world's truth: reference ``depth_ref`` less ``depth``) is within
+    tol; the estimate a run reports (an observer's, here far off) does not count."""
     rec = ControlEnergy(["depth"], ["tau_depth"], [0.01], 0.1)
     errors = [0.5, 0.2, 0.005, 0.3, 0.0]
+    far = {"depth": np.array([9.0])}
     for k, e in enumerate(errors):
-        rec.update(k, 0.1 * k, {"depth": np.array([0.0]), "tau_depth": np.array([2.0])}, {"depth": np.array([e])})
+        truth = {"depth": np.array([0.0]), "depth_ref": np.array([e]), "tau_depth": np.array([2.0])}
+        rec.update(k, 0.1 * k, truth, far)
     assert rec.value["depth"][0] == pytest.approx(3 * 4.0 * 0.1)  # from the 3rd sample on, even if it leaves
     at_tol = ControlEnergy(["depth"], ["tau_depth"], [0.25], 0.5)  # an error of exactly tol has reached it
     for k, e in enumerate([0.5, 0.25, 0.5]):  # at 1 m: the error is reference minus depth
-        at_tol.update(k, 0.5 * k, {"depth": np.array([1.0]), "tau_depth": np.array([2.0])}, {"depth": np.array([1.0 + e])})
+        truth = {"depth": np.array([1.0]), "depth_ref": np.array([1.0 + e]), "tau_depth": np.array([2.0])}
+        at_tol.update(k, 0.5 * k, truth, far)
     assert at_tol.value["depth"][0] == 2 * 4.0 * 0.5
 
 

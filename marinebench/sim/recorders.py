@@ -114,8 +114,9 @@ class NormIntegral:
 
 
 class ControlEnergy:
-    """Tijjani's INT: integral of tau^2 dt per DOF from the first time the tracking error of that DOF
-    is within ``tol`` (the robot "reaches the reference") to the end."""
+    """Tijjani's INT: integral of tau^2 dt per DOF from the first time the tracking error of that DOF (its
+    reference ``<signal>_ref`` less its truth, both from the world's truth, so also in runs that report an
+    observer's estimate) is within ``tol`` (the robot "reaches the reference") to the end."""
 
     def __init__(self, signals: list[str], controls: list[str], tol: list[float], dt: float) -> None:
         self.signals, self.controls, self.tol, self.dt = signals, controls, tol, dt
@@ -127,7 +128,7 @@ class ControlEnergy:
             if s not in self.value:
                 self.value[s] = np.zeros_like(truth[s])
                 self.started[s] = np.zeros(truth[s].shape, dtype=bool)
-            self.started[s] |= np.abs(est[s] - truth[s]) <= tol
+            self.started[s] |= np.abs(truth[f"{s}_ref"] - truth[s]) <= tol
             self.value[s] += np.where(self.started[s], truth[c] ** 2 * self.dt, 0.0)
 
 
