@@ -159,8 +159,9 @@ def tracking_traces(n_var):
     run_seed = np.tile([0, 1], n_var)
     t = np.linspace(0.0, 10.0, 101)
     rng = np.random.default_rng(3)
-    truth = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw", "tau_depth", "tau_yaw"]}
-    est = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw"]}  # the references
+    truth = {s: rng.standard_normal((t.size, 2 * n_var))
+             for s in ["depth", "yaw", "depth_ref", "yaw_ref", "tau_depth", "tau_yaw"]}
+    est = {s: rng.standard_normal((t.size, 2 * n_var)) for s in ["depth", "yaw"]}  # an observer's: not drawn
     return t, truth, est, run_variant, run_seed
 
 
@@ -179,10 +180,10 @@ def test_tracking_columns_reference_error_and_input_yaw_in_degrees(tmp_path, dra
         top, mid, bottom = (lines(a) for a in axes[:, j])
         assert list(top) == ["desired", *labels]
         np.testing.assert_array_equal(top["desired"][0], t[window])
-        np.testing.assert_allclose(top["desired"][1], k * est[s][window, seed0[0]])
-        for label, b in zip(labels, seed0):
+        np.testing.assert_allclose(top["desired"][1], k * truth[f"{s}_ref"][window, seed0[0]])
+        for label, b in zip(labels, seed0):  # the tracking error, whichever estimate a variant reports
             np.testing.assert_allclose(top[label][1], k * truth[s][window, b])
-            np.testing.assert_allclose(mid[label][1], k * (est[s][window, b] - truth[s][window, b]))
+            np.testing.assert_allclose(mid[label][1], k * (truth[f"{s}_ref"][window, b] - truth[s][window, b]))
             np.testing.assert_array_equal(bottom[label][1], truth[f"tau_{s}"][window, b])
         assert has_zero_line(axes[1, j]) and not has_zero_line(axes[0, j])
     assert share_x(axes.ravel()) and all(ax.get_legend() is not None for ax in axes.ravel())

@@ -182,7 +182,7 @@ def test_figures_leaves_a_file_or_link_named_figures_where_the_figures_go(kind, 
 @pytest.mark.parametrize(("edit", "expected"), [
     ({"signals": ["sigma_r", "nosuch"]}, "no trace of ['nosuch']"),
     ({"signals": ["r"], "variants": ["added"]}, "no seed-0 run of variants ['added']"),
-    ({"kind": "tracking", "signals": ["r"]}, "no trace of ['tau_r']"),
+    ({"kind": "tracking", "signals": ["r"]}, "no trace of ['r_ref', 'tau_r']"),
 ])
 def test_figures_of_a_signal_or_variant_the_traces_lack_is_one_line(tiny_config, tmp_path, edit, expected):
     """An edited figure that asks for a signal never traced, a tracking layout on an observer run (no control

@@ -55,9 +55,9 @@ def plain_log_labels(axis) -> None:
 
 def traces_needed(spec: FigureSpec) -> tuple[list[str], list[str]]:
     """The traced signals a figure draws: those it needs a truth of, and those it needs an estimate of (a tracking
-    figure's reference is its estimate row, and it draws the control input ``tau_<signal>``)."""
+    figure draws the reference ``<signal>_ref`` and the control input ``tau_<signal>``, both of the world's truth)."""
     if spec.kind == "tracking":
-        return [*spec.signals, *(f"tau_{s}" for s in spec.signals)], list(spec.signals)
+        return [*spec.signals, *(f"{s}_ref" for s in spec.signals), *(f"tau_{s}" for s in spec.signals)], []
     return list(spec.signals), []
 
 
@@ -133,7 +133,8 @@ def timeseries(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, ru
 
 def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_seed, path: Path) -> None:
     """Closed-loop layout of Tijjani Figs 3/5/7/9: a column per DOF (signals), rows: the reference and each
-    variant's actual trajectory, the tracking errors, the control inputs ``tau_<signal>``. Yaw in degrees."""
+    variant's actual trajectory, the tracking errors (the reference less the truth, also for a variant that reports
+    an observer's estimate), the control inputs ``tau_<signal>``. Yaw in degrees."""
     names, labels, runs = seed0_runs(exp, spec, run_variant, run_seed)
     mask = slice(None) if spec.t_range is None else (t >= spec.t_range[0]) & (t <= spec.t_range[1])
     cols = len(spec.signals)
@@ -142,10 +143,11 @@ def tracking(exp: Experiment, spec: FigureSpec, t, truth, est, run_variant, run_
         k = np.rad2deg(1.0) if sig == "yaw" else 1.0
         unit = "deg" if sig == "yaw" else UNITS.get(sig, "-")
         top, mid, bottom = axes[:, j]
-        top.plot(t[mask], k * est[sig][mask, runs[0]], "k--", lw=1.4, label="desired")
+        ref = truth[f"{sig}_ref"]
+        top.plot(t[mask], k * ref[mask, runs[0]], "k--", lw=1.4, label="desired")
         for name, b in zip(names, runs):
             top.plot(t[mask], k * truth[sig][mask, b], lw=1.0, label=labels[name])
-            mid.plot(t[mask], k * (est[sig][mask, b] - truth[sig][mask, b]), lw=1.0, label=labels[name])
+            mid.plot(t[mask], k * (ref[mask, b] - truth[sig][mask, b]), lw=1.0, label=labels[name])
             bottom.plot(t[mask], truth[f"tau_{sig}"][mask, b], lw=0.8, label=labels[name])
         top.set_ylabel(f"{sig} [{unit}]")
         mid.set_ylabel(f"error [{unit}]")
