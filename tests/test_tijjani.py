@@ -248,15 +248,18 @@ def test_circular_scenario_reference_is_a_config_error(tmp_path):
 
 
 def test_recovery_time_counts_from_the_end_of_each_push():
+    """Against the reference: the tracking error, the reference ``depth_ref`` of the world's truth less the depth
+    (the estimate a run reports, here an observer's far off, does not count)."""
+    far = {"depth": np.array([9.0])}
     rec = RecoveryTime({"depth": [1.0, 3.0]}, {"depth": 0.01}, window=1.5)
     errors = {0.5: 0.0, 1.0: 0.05, 1.5: 0.02, 2.0: 0.005, 3.0: 0.0, 3.5: 0.0}
     for k, (t, e) in enumerate(errors.items()):
-        rec.update(k, t, {"depth": np.array([0.0])}, {"depth": np.array([e])})
+        rec.update(k, t, {"depth": np.array([0.0]), "depth_ref": np.array([e])}, far)
     assert rec.value["depth"][0] == pytest.approx(0.5)  # out of the band until 1.5 s after the first push
     # a deviation of exactly tol is in the band; the window [t_e, t_e + window) leaves its end out
     edge = RecoveryTime({"depth": [1.0]}, {"depth": 0.25}, window=1.0)
     for k, (t, e) in enumerate([(0.5, 0.5), (1.0, 0.5), (1.5, 0.25), (2.0, 0.5)]):
-        edge.update(k, t, {"depth": np.array([0.0])}, {"depth": np.array([e])})
+        edge.update(k, t, {"depth": np.array([0.0]), "depth_ref": np.array([e])}, far)
     assert edge.value["depth"][0] == 0.0
 
 
@@ -397,7 +400,7 @@ def test_recovery_against_the_undisturbed_twin_ignores_the_manoeuvres_own_error(
         rec = RecoveryTime({"yaw": [0.5]}, {"yaw": 0.01}, window=2.5,
                            undisturbed={"yaw": calm[:, None]} if against == "undisturbed" else None)
         for k, tk in enumerate(t):
-            rec.update(k, tk, {"yaw": truth[k : k + 1]}, {"yaw": reference[k : k + 1]})
+            rec.update(k, tk, {"yaw": truth[k : k + 1], "yaw_ref": reference[k : k + 1]}, {})
         assert rec.value["yaw"][0] == pytest.approx(expected)
 
 

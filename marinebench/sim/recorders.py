@@ -149,8 +149,9 @@ class TruthLog:
 class RecoveryTime:
     """Time to recover from each disturbance event, per signal: for an event ending at ``t_e``, the last time
     in ``[t_e, t_e + window)`` at which the deviation exceeds ``tol``, minus ``t_e`` (0 if it never does).
-    The deviation is ``|est - truth|`` (the tracking error), or, with ``undisturbed`` (per-step truth of the
-    same runs without the events), ``|truth - undisturbed|``: how far the events have moved the vehicle.
+    The deviation is ``|<signal>_ref - truth|`` (the tracking error, the reference from the world's truth, whichever
+    estimate a run reports), or, with ``undisturbed`` (per-step truth of the same runs without the events),
+    ``|truth - undisturbed|``: how far the events have moved the vehicle.
     Per run, the largest over the signal's events; ``window`` if it has not recovered by then."""
 
     def __init__(self, events: dict[str, list[float]], tol: dict[str, float], window: float,
@@ -162,7 +163,7 @@ class RecoveryTime:
         for s, ends in self.events.items():
             if s not in self.last_out:
                 self.last_out[s] = [np.full(truth[s].shape, np.nan) for _ in ends]
-            other = est[s] if self.undisturbed is None else self.undisturbed[s][k]
+            other = truth[f"{s}_ref"] if self.undisturbed is None else self.undisturbed[s][k]
             out = np.abs(other - truth[s]) > self.tol[s]
             for i, t_e in enumerate(ends):
                 if t_e <= t < t_e + self.window:
