@@ -274,6 +274,7 @@ class RovWorld:
         self.thrust_response = 1.0 - np.exp(-sc.dt / lag) if lag > 0 else 1.0  # per step of T dtau/dt = cmd - tau
         self.weight = sc.vessel.mass * 9.81
         self._yaw_pts = [(t, np.deg2rad(v)) for t, v in sc.yaw_ref_deg]
+        self._reference_at, self._reference = None, None
 
     def observer_rates(self) -> np.ndarray:
         """Per run, the largest |pole| of the observers this world integrates with the plant (the CDO with its
@@ -281,9 +282,15 @@ class RovWorld:
         return self._rates
 
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        d, dd = min_jerk(t, self.sc.depth_ref)
-        y, yd = min_jerk(t, self._yaw_pts)
-        return np.array([d, y]), np.array([dd, yd])
+        """The reference eta_d (depth, yaw) and its rate at ``t``, read-only: computed once per time, as a step's
+        samples, command, truth and estimates all ask for it."""
+        if t != self._reference_at:
+            d, dd = min_jerk(t, self.sc.depth_ref)
+            y, yd = min_jerk(t, self._yaw_pts)
+            ref, rate = np.array([d, y]), np.array([dd, yd])
+            ref.flags.writeable = rate.flags.writeable = False
+            self._reference_at, self._reference = t, (ref, rate)
+        return self._reference
 
     def loads(self, t: float, x: np.ndarray) -> np.ndarray:
         f = self.random_load.copy()
@@ -366,8 +373,10 @@ class RovWorld:
         d_cdo = chain_rhs(cdo, acc, self.cdo_gain, w - cdo[:, :, 0])
         d_w = cdo[:, :, 1] + self.k_w * (w - cdo[:, :, 0])
         d_eo = chain_rhs(eo, acc, self.eo_gain, self.y - eo[:, :, 0])
-        d_own = self.custom.derivative(x, self.y, self.tau_cmd)
-        return np.concatenate([d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6), d_own], axis=1)
+        parts = [d_cdo.reshape(-1, 6), d_w, d_eo.reshape(-1, 6)]
+        if self.custom.width:  # observers of your own
+            parts.append(self.custom.derivative(x, self.y, self.tau_cmd))
+        return np.concatenate(parts, axis=1)
 
     def derivative(self, t: float, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         plant = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.damping_scale, self.net_buoyancy)
@@ -377,25 +386,28 @@ class RovWorld:
         """The true signals, and the reference ``depth_ref``, ``yaw_ref`` (the tracking error is theirs less the
         truth whichever estimate a run reports: INT's start)."""
         z, psi = x[:, 0], x[:, 1]
-        ref, _ = self.reference(t)
-        return {"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3],
-                "depth_ref": np.broadcast_to(ref[0], z.shape), "yaw_ref": np.broadcast_to(ref[1], z.shape),
+        ref = np.broadcast_to(self.reference(t)[0][:, None], (2, z.size))
+        return {"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3], "depth_ref": ref[0], "yaw_ref": ref[1],
                 "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
                 "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
                 "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi}
 
     def estimates(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         """Per run, the reference (so that 'est - truth' is the tracking error e1 = eta_d - eta) or, for runs
-        observed through the CDO or the EO, that observer's estimate; ``*_meas`` the same at the last sample
-        instant (before the sample) against the sample; ``*_cdo``/``*_eo`` both observers in every run."""
+        observed through the CDO, the EO or a custom observer, that observer's estimate; ``*_meas`` the same at the
+        last sample instant (before the sample) against the sample; ``*_cdo``/``*_eo`` both observers in every run."""
         ref, ref_dot = self.reference(t)
         B = x.shape[0]
         cdo, _ = self.cdo_view(x)
         eo = self.eo_view(x)
         runs = np.arange(B)
-        mine = self.custom.estimates(x)
-        pick = np.stack([np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0], mine[:, :, 0]])[self.observe, runs]
-        rate = np.stack([np.broadcast_to(ref_dot, (B, 2)), cdo[:, :, 1], eo[:, :, 1], mine[:, :, 1]])[self.observe, runs]
+        picks = [np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0]]  # by OBSERVE
+        rates = [np.broadcast_to(ref_dot, (B, 2)), cdo[:, :, 1], eo[:, :, 1]]
+        if self.custom.groups:
+            mine = self.custom.estimates(x)
+            picks.append(mine[:, :, 0])
+            rates.append(mine[:, :, 1])
+        pick, rate = np.stack(picks)[self.observe, runs], np.stack(rates)[self.observe, runs]  # (B, 2)
         meas = self.at_sample[self.observe, runs]
         return {"depth": pick[:, 0], "yaw": pick[:, 1], "depth_rate": rate[:, 0], "yaw_rate": rate[:, 1],
                 "depth_meas": meas[:, 0], "yaw_meas": meas[:, 1],
