@@ -210,9 +210,7 @@ def _preflight_rov_observer(exp: Experiment, file: Path, i: int, v: Variant) -> 
     from marinebench.observers.custom_rov import checked, observer_plant
 
     _check_applies(exp, file, i, v.observer.source)
-    world = exp.scenario.per_run_defaults() | v.world
-    start = [[exp.scenario.depth_ref[0][1] + world["estimate_offset_depth"],
-              np.deg2rad(exp.scenario.yaw_ref_deg[0][1] + world["estimate_offset_yaw_deg"])]]
+    start = exp.scenario.initial_estimates(exp.scenario.per_run_values({k: [x] for k, x in v.world.items()}, 1))
     with _user_code(file, f"variants.{i}.observer.params"):  # its constructor refusing its params
         built = observer_class(v.observer.source)([v.observer.params], observer_plant(exp.scenario, start), exp.scenario.dt)
     with _user_code(file, f"variants.{i}.observer.source"):

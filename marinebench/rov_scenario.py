@@ -128,6 +128,16 @@ class RovScenario(ScenarioBase):
                 "depth_noise": s.depth_noise, "yaw_noise_deg": s.yaw_noise_deg, "gyro_noise_dps": s.gyro_noise_dps,
                 **{key: getattr(self, key) for key in PLANT_SCALES.model_fields}}
 
+    def initial_pose(self) -> np.ndarray:
+        """(depth [m], yaw [rad]) at t = 0: the references' first points."""
+        return np.array([self.depth_ref[0][1], np.deg2rad(self.yaw_ref_deg[0][1])])
+
+    def initial_estimates(self, own: dict[str, np.ndarray]) -> np.ndarray:
+        """``(B, 2)``: where each run's observers (the CDO, the EO, a custom one) start, the initial pose plus the run's
+        estimate offset (``own``: the per-run world values, :meth:`per_run_values`)."""
+        offset = np.stack([own["estimate_offset_depth"], np.deg2rad(own["estimate_offset_yaw_deg"])], axis=1)
+        return self.initial_pose() + offset
+
     def check_per_run(self, world: dict[str, float]) -> None:
         """Per-run noise levels and plant multipliers are bounded as the scenario's own fields are (any finite
         offset goes)."""
@@ -241,9 +251,7 @@ class RovWorld:
         self.every = tuple(round(h / sc.dt) for _, h in sc.sample_periods())
         self.control_every = round(sc.control_period / sc.dt)
         self.m_hat = self.plant.inertia  # nominal inertia (with added mass) of each DOF
-        pose = np.array([sc.depth_ref[0][1], np.deg2rad(sc.yaw_ref_deg[0][1])])
-        offset = np.stack([own["estimate_offset_depth"], np.deg2rad(own["estimate_offset_yaw_deg"])], axis=1)
-        start = pose + offset  # (B, 2): the observers start at the pose plus an offset
+        pose, start = sc.initial_pose(), sc.initial_estimates(own)  # the observers start at the pose plus an offset
         observers = [None] * B if observers is None else observers
         # state: plant [z, psi, w, r] | CDO x_hat (2 DOF x 3) | CDO predictors w (2) | EO x_hat (2 x 3) | then the
         # state of the runs' observers of your own (kind: custom), if any
@@ -353,12 +361,15 @@ class RovWorld:
     def _control(self, t: float, x: np.ndarray) -> None:
         """The controllers' new commands, from the held samples or an observer's estimates (``feedback``)."""
         ref, ref_dot = self.reference(t)
+        estimates = {"cdo": self.cdo_view(x)[0], "eo": self.eo_view(x)}  # [eta, eta_dot(, delta)] per DOF
+        if "custom" in self.feedback:
+            estimates["custom"] = self.custom.estimates(x)
         tau = np.zeros_like(self.tau)
         for (ctrl, idx, scale), fb, ff in zip(self.groups, self.feedback, self.feedforward):
             if fb == "measured":
                 pos, vel = self.y[idx], self.ydot[idx]
             else:
-                est = self.cdo_view(x)[0] if fb == "cdo" else self.eo_view(x) if fb == "eo" else self.custom.estimates(x)
+                est = estimates[fb]
                 pos, vel = est[idx, :, 0], est[idx, :, 1]
             tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
             if ff.any():
