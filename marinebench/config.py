@@ -75,6 +75,11 @@ class Variant(BaseModel):
         if self.controller is not None and self.controller.feedback == "custom" and getattr(self.observer, "kind", None) != "custom":
             raise ValueError("feedback 'custom' feeds the controller the variant's own observer: give observer: "
                              "{kind: custom, source: file.py:Class}")
+        if self.controller is not None and self.controller.feedback == "custom":
+            fed = [f"{dof}_disturbance" for dof, ff in zip(("depth", "yaw"), self.controller.feedforward_mask()) if ff]
+            if missing := [s for s in fed if s not in self.observer.estimated_signals()]:
+                raise ValueError(f"disturbance_feedforward with feedback 'custom' feeds forward the observer's "
+                                 f"{' and '.join(missing)}, not among its signals {list(self.observer.estimated_signals())}")
         return self
 
 

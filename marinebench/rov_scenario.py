@@ -361,7 +361,7 @@ class RovWorld:
     def _control(self, t: float, x: np.ndarray) -> None:
         """The controllers' new commands, from the held samples or an observer's estimates (``feedback``)."""
         ref, ref_dot = self.reference(t)
-        estimates = {"cdo": self.cdo_view(x)[0], "eo": self.eo_view(x)}  # [eta, eta_dot(, delta)] per DOF
+        estimates = {"cdo": self.cdo_view(x)[0], "eo": self.eo_view(x)}  # [eta, eta_dot, delta] per DOF
         if "custom" in self.feedback:
             estimates["custom"] = self.custom.estimates(x)
         tau = np.zeros_like(self.tau)
@@ -372,8 +372,8 @@ class RovWorld:
                 est = estimates[fb]
                 pos, vel = est[idx, :, 0], est[idx, :, 1]
             tau[idx] = scale * ctrl.command(ref - pos, ref_dot - vel, self.sc.control_period)
-            if ff.any():
-                tau[idx] -= ff * self.m_hat * est[idx, :, 2]
+            if ff.any():  # the DOF not fed forward may have no disturbance estimate (a custom observer's: NaN)
+                tau[idx] -= np.where(ff, self.m_hat * est[idx, :, 2], 0.0)
         _, self.tau_cmd = self.plant.allocate(tau)
 
     def observers_derivative(self, x: np.ndarray) -> np.ndarray:

@@ -54,6 +54,23 @@ class EoCopy:
         return self.eo.max_rate()
 
 
+class EoWithDisturbance(EoCopy):
+    """The same, also reporting its lumped-disturbance estimate x_hat_3 of each DOF (or of yaw only: params)."""
+
+    signals = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_disturbance", "yaw_disturbance")
+
+    def outputs(self, xhat):
+        x = xhat.reshape(-1, 2, 3)
+        return super().outputs(xhat) | {"depth_disturbance": x[:, 0, 2], "yaw_disturbance": x[:, 1, 2]}
+
+
+class EoYawDisturbance(EoCopy):
+    signals = ("depth", "yaw", "depth_rate", "yaw_rate", "yaw_disturbance")
+
+    def outputs(self, xhat):
+        return super().outputs(xhat) | {"yaw_disturbance": xhat.reshape(-1, 2, 3)[:, 1, 2]}
+
+
 class Held:
     """The held samples and their differences: what the world feeds a controller with feedback measured."""
 
@@ -137,6 +154,30 @@ def test_a_custom_observer_restating_the_eo_reports_and_feeds_the_loop_as_the_eo
     assert values.loc["eo_fed", :, "int", "depth"].ne(values.loc["eo_watch", :, "int", "depth"]).all()
 
 
+def test_a_custom_observer_estimating_the_disturbance_feeds_it_forward_as_the_eo_does(tmp_path):
+    """A class that also reports its disturbance estimates (depth_disturbance, yaw_disturbance) feeds them forward,
+    with disturbance_feedforward, as the EO's x_hat_3 is: the same loop as feedback eo with feedforward, to the bit,
+    in both DOF or in yaw alone (a class estimating only yaw's disturbance); and a different loop from the one
+    without feedforward."""
+    both = {"kind": "custom", "source": "classes.py:EoWithDisturbance"}
+    yaw_only = {"kind": "custom", "source": "classes.py:EoYawDisturbance"}
+    values = _run(tmp_path, [
+        {"name": "eo_ff", "controller": {**SRISE, "feedback": "eo", "disturbance_feedforward": True},
+         "observer": {"kind": "eo"}},
+        {"name": "copy_ff", "controller": {**SRISE, "feedback": "custom", "disturbance_feedforward": True},
+         "observer": both},
+        {"name": "eo_ff_yaw", "controller": {**SRISE, "feedback": "eo", "disturbance_feedforward": [False, True]},
+         "observer": {"kind": "eo"}},
+        {"name": "copy_ff_yaw", "controller": {**SRISE, "feedback": "custom", "disturbance_feedforward": [False, True]},
+         "observer": yaw_only},
+        {"name": "copy_fed", "controller": {**SRISE, "feedback": "custom"}, "observer": both},
+    ])
+    _same(values, "eo_ff", "copy_ff", ("rmse", "each", "int"))
+    _same(values, "eo_ff_yaw", "copy_ff_yaw", ("rmse", "each", "int"))
+    assert values.loc["copy_ff", :, "int", "yaw"].ne(values.loc["copy_fed", :, "int", "yaw"]).all()
+    assert values.loc["copy_ff", :, "int", "depth"].ne(values.loc["copy_ff_yaw", :, "int", "depth"]).all()
+
+
 def test_a_discrete_custom_observer_of_the_held_samples_closes_the_measured_loop(tmp_path):
     """``discrete = True``: stepped at the start of every engine step after its samples and before the command, so a
     class holding the samples and differencing them (as the world does for feedback measured) closes the same loop:
@@ -153,7 +194,8 @@ def test_a_discrete_custom_observer_of_the_held_samples_closes_the_measured_loop
 
 def test_the_sampled_eso_example_runs_beside_the_cdo_and_the_eo(tmp_path, monkeypatch):
     """examples/custom_observer/sampled_eso.yaml, copied elsewhere: its quick profile runs, the manifest records the
-    class's file, and the loop closed through it (srise_sampled_eso) differs from the one it only watches."""
+    class's file, and the loop closed through it (srise_sampled_eso) differs from the one it only watches, and from the
+one that also feeds its disturbance estimate forward (sampled_eso_srise)."""
     folder = tmp_path / "examples" / "mine"
     shutil.copytree(ROOT / "examples" / "custom_observer", folder)
     shutil.copytree(ROOT / "scenarios", tmp_path / "scenarios")
@@ -166,6 +208,7 @@ def test_the_sampled_eso_example_runs_beside_the_cdo_and_the_eo(tmp_path, monkey
     assert rmse["sampled_eso", "depth"] < 0.01 and rmse["sampled_eso", "yaw"] < 0.02  # m, rad: it tracks the truth
     ints = m[m.metric == "int"].groupby(["variant", "signal"])["value"].mean()
     assert ints["srise_sampled_eso", "depth"] != ints["srise_cdo", "depth"]
+    assert ints["sampled_eso_srise", "depth"] != ints["srise_sampled_eso", "depth"]  # its disturbance fed forward
     design = json.loads((tmp_path / "out" / "sampled_eso" / "manifest.json").read_text())["designs"]["sampled_eso"]
     assert design["observer"]["source"] == f"{(folder / 'sampled_eso.py').resolve()}:SampledEso"
     assert design["observed_through"] == "custom" and len(design["observer"]["sha256"]) == 64
@@ -175,9 +218,13 @@ BROKEN = {  # an edit of the variant (its observer and controller) or of the cla
     "feedback_without_observer": (
         lambda v: v.update(controller={**SRISE, "feedback": "custom"}, observer={"kind": "cdo"}), None,
         "variants.0", "feedback 'custom' feeds the controller the variant's own observer: give observer: {kind: custom"),
-    "feedforward": (
-        lambda v: v["controller"].update(disturbance_feedforward=True), None,
-        "variants.0.controller", "disturbance_feedforward needs feedback 'cdo' or 'eo'"),
+    "feedforward_measured": (
+        lambda v: v["controller"].update(feedback="measured", disturbance_feedforward=True), None,
+        "variants.0.controller", "disturbance_feedforward needs feedback 'cdo', 'eo' or 'custom'"),
+    "feedforward_without_estimate": (
+        lambda v: v["controller"].update(disturbance_feedforward=[False, True]), None,
+        "variants.0", ("disturbance_feedforward with feedback 'custom' feeds forward the observer's yaw_disturbance, "
+                       "not among its signals ['depth', 'yaw', 'depth_rate', 'yaw_rate']")),
     "other_world": (
         None, lambda text: text.replace('scenario_kinds = ("rov_tracking",)\n    signals = ("depth", "yaw", "depth_rate", '
                                         '"yaw_rate")\n    n_state = 6', 'scenario_kinds = ("open_loop_asv",)\n    signals = '
@@ -187,7 +234,8 @@ BROKEN = {  # an edit of the variant (its observer and controller) or of the cla
         None, lambda text: text.replace('signals = ("depth", "yaw", "depth_rate", "yaw_rate")\n    n_state = 6',
                                         'signals = ("depth", "yaw")\n    n_state = 6'),
         "variants.0.observer.source", ("EoCopy.signals is ('depth', 'yaw'): an observer of a rov_tracking world "
-                                       "estimates depth, yaw, depth_rate, yaw_rate")),
+                                       "estimates depth, yaw, depth_rate, yaw_rate (and may estimate "
+                                       "depth_disturbance and yaw_disturbance)")),
     "params_refused": (
         lambda v: v["observer"].update(params={"eps": -1.0}), None,
         "variants.0.observer.params", "ValueError: eps must be positive"),

@@ -43,7 +43,7 @@ def sample_gain(h: float, omega: float) -> np.ndarray:
 
 class SampledEso:
     scenario_kinds = ("rov_tracking",)
-    signals = ("depth", "yaw", "depth_rate", "yaw_rate")
+    signals = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_disturbance", "yaw_disturbance")  # d: fed forward
     n_state = 6  # [z, z_dot, d_z, psi, psi_dot, d_psi]
     discrete = True
 
@@ -72,7 +72,8 @@ class SampledEso:
 
     def outputs(self, xhat: np.ndarray) -> dict[str, np.ndarray]:
         x = xhat.reshape(-1, 2, 3)
-        return {"depth": x[:, 0, 0], "yaw": x[:, 1, 0], "depth_rate": x[:, 0, 1], "yaw_rate": x[:, 1, 1]}
+        return {"depth": x[:, 0, 0], "yaw": x[:, 1, 0], "depth_rate": x[:, 0, 1], "yaw_rate": x[:, 1, 1],
+                "depth_disturbance": x[:, 0, 2], "yaw_disturbance": x[:, 1, 2]}
 
     def max_rate(self) -> float:
         return 0.0  # stepped exactly, not integrated by RK4: no step limit

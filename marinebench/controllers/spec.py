@@ -46,9 +46,9 @@ class ControllerSpec(BaseModel):
     )
 
     disturbance_feedforward: bool | tuple[bool, bool] = Field(
-        False, description="cdo/eo feedback only: subtract M_hat times the observer's lumped-disturbance estimate "
-        "(x_hat_3) from the command, so the controller is fed the observer's state and disturbance estimates "
-        "(Tijjani Sec. IV); one flag, or (depth, yaw)",
+        False, description="cdo/eo/custom feedback only: subtract M_hat times the observer's lumped-disturbance "
+        "estimate (x_hat_3; a custom observer's depth_disturbance, yaw_disturbance) from the command, so the "
+        "controller is fed the observer's state and disturbance estimates (Tijjani Sec. IV); one flag, or (depth, yaw)",
     )
     preset: Literal["subjugator", "table2_equivalent"] = Field(
         "subjugator", description="RISE gains (Tijjani does not publish its own): SubjuGator's z/yaw entries, or "
@@ -64,8 +64,8 @@ class ControllerSpec(BaseModel):
     def _feedforward_needs_an_observer(self):
         if self.output_scale not in (None, "inertia") and (np.asarray(self.output_scale, dtype=float) <= 0).any():
             raise ValueError("output_scale must be positive")
-        if any(self.feedforward_mask()) and self.feedback in ("measured", "custom"):
-            raise ValueError("disturbance_feedforward needs feedback 'cdo' or 'eo'")
+        if any(self.feedforward_mask()) and self.feedback == "measured":
+            raise ValueError("disturbance_feedforward needs feedback 'cdo', 'eo' or 'custom' (an observer's estimate)")
         if self.kind == "custom" and self.source is None:
             raise ValueError("source: a custom controller needs source: file.py:ClassName")
         if foreign := [f for f, kinds in self.ONLY_FOR.items() if self.kind not in kinds

@@ -5,8 +5,12 @@ The class follows the protocol of :mod:`marinebench.observers.custom` with ``"ro
 ``scenario_kinds``, for two degrees of freedom, depth and yaw:
 
 ``signals``
-    exactly ``("depth", "yaw", "depth_rate", "yaw_rate")``: the estimates of eta = (z [m], psi [rad]) and of their
-    rates, which the world records against the truth and a controller with ``feedback: custom`` is fed;
+    ``("depth", "yaw", "depth_rate", "yaw_rate")``: the estimates of eta = (z [m], psi [rad]) and of their rates,
+    which the world records against the truth and a controller with ``feedback: custom`` is fed; and optionally
+    ``depth_disturbance`` and/or ``yaw_disturbance``: the lumped disturbance as an acceleration [m/s^2, rad/s^2]
+    (the CDO's x_hat_3: eta_ddot = tau / inertia + d), which such a controller with ``disturbance_feedforward``
+    subtracts, times the nominal inertia, from its command as it does the CDO's (not recorded: the world has no
+    truth of it);
 ``__init__(self, params: list[dict], plant: RovObserverPlant, dt: float)``
     ``plant`` says what the built-in CDO and EO are given: the nominal inertia, each run's initial estimate, the
     sample and control periods (:class:`RovObserverPlant`);
@@ -31,6 +35,7 @@ from marinebench.errors import ProtocolError
 from marinebench.observers.custom import CheckedObserver, observer_class
 
 ROV_ESTIMATES = ("depth", "yaw", "depth_rate", "yaw_rate")  # what a custom observer of the ROV world estimates
+ROV_DISTURBANCES = ("depth_disturbance", "yaw_disturbance")  # and may estimate, for the feedforward (per DOF)
 
 
 @dataclass(frozen=True)
@@ -66,7 +71,7 @@ class CustomRovObservers:
                                            scenario.dt)
             self.groups.append((checked(inner, len(idx)), idx))
         self.width = max((obs.n_state for obs, _ in self.groups), default=0)
-        self._none = np.full((self.n_runs, 2, 2), np.nan)  # the estimates of a batch without such an observer
+        self._none = np.full((self.n_runs, 2, 3), np.nan)  # the estimates of a batch without such an observer
 
     def _columns(self, obs: CheckedObserver) -> slice:
         return slice(self.start, self.start + obs.n_state)
@@ -92,14 +97,16 @@ class CustomRovObservers:
                 x[idx, cols] = obs.step(x[idx, cols].copy(), y[idx], tau[idx], k)
 
     def estimates(self, x: np.ndarray) -> np.ndarray:
-        """``(B, 2 DOF, 2)``: [estimate, rate estimate] of depth and yaw per run; NaN for runs without a class."""
+        """``(B, 2 DOF, 3)``: [estimate, rate estimate, disturbance estimate] of depth and yaw per run, laid out as the
+        CDO's and EO's state; NaN for runs without a class and for the disturbances a class does not estimate."""
         if not self.groups:
             return self._none
-        out = np.full((x.shape[0], 2, 2), np.nan)
+        out = np.full((x.shape[0], 2, 3), np.nan)
         for obs, idx in self.groups:
             est = obs.outputs(x[idx, self._columns(obs)])
-            out[idx] = np.stack([np.stack([est["depth"], est["depth_rate"]], -1),
-                                 np.stack([est["yaw"], est["yaw_rate"]], -1)], axis=1)
+            for dof, name in enumerate(("depth", "yaw")):
+                missing = np.full(len(idx), np.nan)
+                out[idx, dof] = np.stack([est[name], est[f"{name}_rate"], est.get(f"{name}_disturbance", missing)], -1)
         return out
 
     def rates(self) -> np.ndarray:
@@ -111,9 +118,10 @@ class CustomRovObservers:
 
 
 def checked(inner, n_runs: int) -> CheckedObserver:
-    """``inner`` checked against the protocol, its signals the ROV's estimates (a :class:`ProtocolError` otherwise)."""
+    """``inner`` checked against the protocol, its signals the ROV's estimates and optionally its disturbances (a
+    :class:`ProtocolError` otherwise)."""
     obs = CheckedObserver(inner, n_runs)
-    if set(obs.signals) != set(ROV_ESTIMATES):
+    if not set(ROV_ESTIMATES) <= set(obs.signals) <= set(ROV_ESTIMATES + ROV_DISTURBANCES):
         raise ProtocolError(f"{obs.name}.signals is {obs.signals!r}: an observer of a rov_tracking world estimates "
-                            f"{', '.join(ROV_ESTIMATES)}")
+                            f"{', '.join(ROV_ESTIMATES)} (and may estimate {' and '.join(ROV_DISTURBANCES)})")
     return obs
