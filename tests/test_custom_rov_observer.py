@@ -239,6 +239,11 @@ BROKEN = {  # an edit of the variant (its observer and controller) or of the cla
     "params_refused": (
         lambda v: v["observer"].update(params={"eps": -1.0}), None,
         "variants.0.observer.params", "ValueError: eps must be positive"),
+    "multiline_message": (  # a class's exception of several lines is still one line
+        lambda v: v["observer"].update(params={"eps": -1.0}),
+        lambda text: text.replace('raise ValueError("eps must be positive")',
+                                  'raise ValueError("eps must be positive:\\n\\n    eps = 0.01 is a good start\\n")'),
+        "variants.0.observer.params", "ValueError: eps must be positive: / eps = 0.01 is a good start"),
     "wrong_shape": (
         None, lambda text: text.replace("return (flow + self.gain * (y - x[..., 0])[..., None]).reshape(-1, 6)",
                                         "return flow"),

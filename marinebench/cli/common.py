@@ -57,8 +57,15 @@ def _options(version: Annotated[bool, typer.Option("--version", callback=_print_
 
 
 def fail(message: str, code: int = 2) -> None:
-    err.print(f"error: {message}", markup=False)
+    """``message`` on one line of stderr (the lines of a message from a class of your own, or a library's, joined by
+    " / "), and exit ``code``."""
+    err.print(f"error: {one_line(message)}", markup=False)
     raise typer.Exit(code)
+
+
+def one_line(message: str) -> str:
+    """``message``'s non-blank lines, stripped and joined by " / "."""
+    return " / ".join(line.strip() for line in message.splitlines() if line.strip())
 
 
 class Terminated(KeyboardInterrupt):
