@@ -259,7 +259,8 @@ def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):
             if bad := set(m.signals) - signals:
-                raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}")
+                hint = did_you_mean(near_misses(min(bad), sorted(signals))) or f" (estimated here: {', '.join(sorted(signals))})"
+                raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}{hint}")
             if truth is not None and set(m.signals) - set(truth):
                 raise ConfigError(file, f"metrics.{j}.signals", f"{sorted(set(m.signals) - set(truth))}: an "
                                   f"{exp.scenario.kind} world has no truth of these (it has {', '.join(truth)})")

@@ -10,6 +10,12 @@ controllers get rates by differencing the samples (default), from a gyro, or the
 Truth signals ``depth``, ``yaw`` (and the achieved ``tau_depth``, ``tau_yaw``); the reference is exposed
 as the "estimate" of ``depth`` and ``yaw`` (or, for runs observed through the CDO, the EO or a custom observer,
 that observer's estimate), so the RMSE recorder gives the tracking RMSE of Table III.
+
+``depth_disturbance``, ``yaw_disturbance``: the lumped disturbance d of the observers' model eta_ddot = tau_c / M_hat
++ d per DOF (Tijjani eq. (38), x_3; tau_c the allocated, saturated command, M_hat the nominal inertia), whose truth is
+the plant's acceleration less tau_c / M_hat: the thrust's lag, the damping, the net buoyancy and the loads over
+M_hat. A run observed through the CDO, the EO or a custom observer estimating it reports that observer's x_hat_3;
+``*_disturbance_cdo`` and ``*_disturbance_eo`` are the two observers' in every run.
 """
 
 from __future__ import annotations
@@ -23,12 +29,14 @@ from pydantic import BaseModel, Field, create_model, model_validator
 
 from marinebench.models.rov import LeonardLike, LeonardLikeParams
 from marinebench.observers.cdo import CdoParams, EoParams, chain_rhs
-from marinebench.observers.custom_rov import CustomRovObservers
+from marinebench.observers.custom_rov import ROV_DISTURBANCES, CustomRovObservers
 from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.settings import STRICT
 
-ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo")  # est - truth pairs
+ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo",
+               "depth_disturbance", "yaw_disturbance", "depth_disturbance_cdo", "yaw_disturbance_cdo",
+               "depth_disturbance_eo", "yaw_disturbance_eo")  # est - truth pairs
 OBSERVE = {None: 0, "cdo": 1, "eo": 2, "custom": 3}  # the estimate a run reports: the reference (none) or an observer's
 
 
@@ -273,6 +281,10 @@ class RovWorld:
         self._rates = np.maximum(_per_run(cdos, CdoParams.max_rate), _per_run(eos, EoParams.max_rate))
         self._rates = np.maximum(self._rates, self.custom.rates())
         self.feedback = [spec.feedback for spec, _ in controllers]
+        # per run, the disturbances its observer estimates: all for the CDO and the EO, a custom one's own signals
+        self.disturbances_of_runs = [set(ROV_DISTURBANCES) if o is not None and o.kind != "custom"
+                                     else set(ROV_DISTURBANCES) & set(o.estimated_signals()) if o is not None else set()
+                                     for o in observers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
         self.at_sample = np.repeat(self.x0[None, :, :2], 4, axis=0)  # reference, CDO, EO, custom estimate at the last sample
@@ -398,10 +410,19 @@ class RovWorld:
         truth whichever estimate a run reports: INT's start)."""
         z, psi = x[:, 0], x[:, 1]
         ref = np.broadcast_to(self.reference(t)[0][:, None], (2, z.size))
+        d = self.disturbance(t, x)
         return {"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3], "depth_ref": ref[0], "yaw_ref": ref[1],
                 "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
                 "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
-                "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi}
+                "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi,
+                "depth_disturbance": d[:, 0], "yaw_disturbance": d[:, 1], "depth_disturbance_cdo": d[:, 0],
+                "yaw_disturbance_cdo": d[:, 1], "depth_disturbance_eo": d[:, 0], "yaw_disturbance_eo": d[:, 1]}
+
+    def disturbance(self, t: float, x: np.ndarray) -> np.ndarray:
+        """``(B, 2)``: the true lumped disturbance d = eta_ddot - tau_c / M_hat of depth [m/s^2] and yaw [rad/s^2] at
+        ``t`` (the acceleration over the step that starts there: the achieved thrust held over it)."""
+        acc = self.plant.derivative(x[:, :4], self.tau, self.loads(t, x), self.damping_scale, self.net_buoyancy)[:, 2:4]
+        return acc - self.tau_cmd / self.m_hat
 
     def estimates(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         """Per run, the reference (so that 'est - truth' is the tracking error e1 = eta_d - eta) or, for runs
@@ -412,14 +433,20 @@ class RovWorld:
         cdo, _ = self.cdo_view(x)
         eo = self.eo_view(x)
         runs = np.arange(B)
-        picks = [np.broadcast_to(ref, (B, 2)), cdo[:, :, 0], eo[:, :, 0]]  # by OBSERVE
-        rates = [np.broadcast_to(ref_dot, (B, 2)), cdo[:, :, 1], eo[:, :, 1]]
+        none = np.full((B, 2), np.nan)
+        picks = [np.stack([np.broadcast_to(ref, (B, 2)), np.broadcast_to(ref_dot, (B, 2)), none], -1), cdo, eo]  # by OBSERVE
         if self.custom.groups:
-            mine = self.custom.estimates(x)
-            picks.append(mine[:, :, 0])
-            rates.append(mine[:, :, 1])
-        pick, rate = np.stack(picks)[self.observe, runs], np.stack(rates)[self.observe, runs]  # (B, 2)
+            picks.append(self.custom.estimates(x))
+        pick = np.stack(picks)[self.observe, runs]  # (B, 2 DOF, [eta, eta_dot, d])
         meas = self.at_sample[self.observe, runs]
-        return {"depth": pick[:, 0], "yaw": pick[:, 1], "depth_rate": rate[:, 0], "yaw_rate": rate[:, 1],
+        return {"depth": pick[:, 0, 0], "yaw": pick[:, 1, 0], "depth_rate": pick[:, 0, 1], "yaw_rate": pick[:, 1, 1],
                 "depth_meas": meas[:, 0], "yaw_meas": meas[:, 1],
-                "depth_cdo": cdo[:, 0, 0], "yaw_cdo": cdo[:, 1, 0], "depth_eo": eo[:, 0, 0], "yaw_eo": eo[:, 1, 0]}
+                "depth_cdo": cdo[:, 0, 0], "yaw_cdo": cdo[:, 1, 0], "depth_eo": eo[:, 0, 0], "yaw_eo": eo[:, 1, 0],
+                "depth_disturbance": pick[:, 0, 2], "yaw_disturbance": pick[:, 1, 2],
+                "depth_disturbance_cdo": cdo[:, 0, 2], "yaw_disturbance_cdo": cdo[:, 1, 2],
+                "depth_disturbance_eo": eo[:, 0, 2], "yaw_disturbance_eo": eo[:, 1, 2]}
+
+    def signals_of_runs(self) -> list[set[str]]:
+        """Per run, the signals it reports an estimate of: all but the disturbances its observer does not estimate
+        (no metric rows for those)."""
+        return [set(ROV_SIGNALS) - set(ROV_DISTURBANCES) | own for own in self.disturbances_of_runs]

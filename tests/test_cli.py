@@ -170,6 +170,12 @@ BAD = {
     "signal_without_truth": (lambda d: (d["variants"][0].update(observer={"kind": "npo"}),
                                         d["metrics"][0].update(signals=["u", "b_x"]), d["table"].update(signals=["u"])),
                              "metrics.0.signals: ['b_x']: an open_loop_asv world has no truth of these"),
+    # a signal no variant estimates: its near misses, or what is estimated
+    "unknown_signal": (lambda d: d["metrics"].append({"kind": "rmse", "t_start": 0.0, "signals": ["sigma_uu"]}),
+                       "metrics.1.signals: unknown signals ['sigma_uu'] (did you mean sigma_u"),
+    "unknown_signal_far_off": (lambda d: d["metrics"].append({"kind": "rmse", "t_start": 0.0, "signals": ["speed"]}),
+                               ("metrics.1.signals: unknown signals ['speed'] (estimated here: r, sigma_r, sigma_u, "
+                                "sigma_v, u, v)")),
     # checks across keys name the key they are about and what is there instead
     "duplicate_variant_names": (lambda d: d["variants"][1].update(name="liu_eps0.2"),
                                 "variants: duplicate names ['liu_eps0.2']"),

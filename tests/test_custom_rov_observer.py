@@ -113,6 +113,7 @@ def _config(tmp_path, variants: list[dict], name: str = "mine") -> str:
            "metrics": [{"kind": "rmse", "name": "rmse", "t_start": 0.0, "signals": OBSERVED},
                        {"kind": "rmse", "name": "each", "t_start": 0.0,
                         "signals": ["depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo"]},
+                       {"kind": "rmse", "name": "dist", "t_start": 0.0, "signals": ["depth_disturbance", "yaw_disturbance"]},
                        {"kind": "int", "name": "int"}]}
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
@@ -149,6 +150,7 @@ def test_a_custom_observer_restating_the_eo_reports_and_feeds_the_loop_as_the_eo
         {"name": "copy_fed", "controller": {**SRISE, "feedback": "custom"}, "observer": mine},
     ])
     _same(values, "eo_watch", "copy_watch", ("rmse", "each", "int"))
+    assert "dist" not in values.loc["copy_watch"].index.get_level_values("metric")  # it estimates no disturbance
     _same(values, "eo_watch", "cdo_watch", ("each", "int"))
     _same(values, "eo_fed", "copy_fed", ("rmse", "each", "int"))
     assert values.loc["eo_fed", :, "int", "depth"].ne(values.loc["eo_watch", :, "int", "depth"]).all()
@@ -172,8 +174,11 @@ def test_a_custom_observer_estimating_the_disturbance_feeds_it_forward_as_the_eo
          "observer": yaw_only},
         {"name": "copy_fed", "controller": {**SRISE, "feedback": "custom"}, "observer": both},
     ])
-    _same(values, "eo_ff", "copy_ff", ("rmse", "each", "int"))
+    _same(values, "eo_ff", "copy_ff", ("rmse", "each", "int", "dist"))  # dist: the class's own d against the truth
     _same(values, "eo_ff_yaw", "copy_ff_yaw", ("rmse", "each", "int"))
+    assert values.loc["copy_ff_yaw", :, "dist"].index.get_level_values("signal").unique().tolist() == ["yaw_disturbance"]
+    np.testing.assert_array_equal(values.loc["copy_ff_yaw", :, "dist", "yaw_disturbance"],
+                                  values.loc["eo_ff_yaw", :, "dist", "yaw_disturbance"])
     assert values.loc["copy_ff", :, "int", "yaw"].ne(values.loc["copy_fed", :, "int", "yaw"]).all()
     assert values.loc["copy_ff", :, "int", "depth"].ne(values.loc["copy_ff_yaw", :, "int", "depth"]).all()
 

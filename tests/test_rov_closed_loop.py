@@ -327,6 +327,50 @@ def test_truth_and_estimates_name_the_state_columns_of_each_runs_observer():
         np.testing.assert_array_equal(truth[name], x[:, 0 if "depth" in name else 1])
 
 
+def test_the_disturbance_is_the_acceleration_that_the_command_over_the_nominal_inertia_leaves():
+    """``*_disturbance``: truth d = eta_ddot - tau_c / M_hat (the observers' model, eq. (38) x_3) from the plant's
+    thrust (lagging the command), damping, net buoyancy and loads (a push); the estimate is x_hat_3 of the run's
+    observer (none: NaN), ``*_disturbance_cdo`` / ``_eo`` both observers' in every run."""
+    from marinebench.observers.cdo import RovObserverSpec
+
+    w = world_of(3, [None, RovObserverSpec(kind="cdo"), RovObserverSpec(kind="eo")],
+                 pushes=[{"t_start": 0.0, "duration": 1.0, "force": [5.0, -2.0]}])
+    p, (m_z, i_r) = w.plant.p, w.plant.inertia
+    x = np.tile(np.arange(18.0) + 0.5, (3, 1))
+    x[:, 2:4] = [0.1, -0.2]  # heave and yaw rates
+    w.tau, w.tau_cmd = np.array([[20.0, 1.0]] * 3), np.array([[25.0, 0.5]] * 3)
+    truth, est = w.truth(0.5, x), w.estimates(0.5, x)
+    heave = (20.0 - (p.d_heave_lin + p.d_heave_quad * 0.1) * 0.1 - p.net_buoyancy + 5.0) / m_z - 25.0 / m_z
+    yaw = (1.0 + (p.d_yaw_lin + p.d_yaw_quad * 0.2) * 0.2 - 2.0) / i_r - 0.5 / i_r
+    for suffix in ("", "_cdo", "_eo"):
+        np.testing.assert_allclose(truth[f"depth_disturbance{suffix}"], heave, rtol=1e-12)
+        np.testing.assert_allclose(truth[f"yaw_disturbance{suffix}"], yaw, rtol=1e-12)
+    np.testing.assert_array_equal(est["depth_disturbance"], [np.nan, 6.5, 14.5])  # x_hat_3: columns 6 and 14
+    np.testing.assert_array_equal(est["yaw_disturbance"], [np.nan, 9.5, 17.5])
+    np.testing.assert_array_equal(est["depth_disturbance_cdo"], [6.5] * 3)
+    np.testing.assert_array_equal(est["yaw_disturbance_eo"], [17.5] * 3)
+
+
+def test_the_cdo_follows_the_payloads_disturbance_and_a_run_without_an_observer_has_no_such_rows(tmp_path):
+    """S2-C1 (the payload hangs, then rests on the floor from 0.25 m): the CDO-S+RISE run's disturbance estimate
+    follows the truth, its RMSE within half the truth's RMS after the first 2 s (0.26: the depth sensor's
+    noise); the RISE run (no observer)
+    reports no depth_disturbance, but the CDO it carries does (depth_disturbance_cdo)."""
+    exp, _ = experiment(tmp_path, [
+        {"name": "cdo_srise", "controller": {"kind": "srise", "feedback": "cdo", "disturbance_feedforward": True},
+         "observer": {"kind": "cdo"}},
+        {"name": "rise", "controller": {"kind": "rise"}}],
+        f"scenario={{from: {ROOT / 'scenarios' / 'rov_s2_c1.yaml'}, horizon: 12}}",
+        metrics=[{"kind": "rmse", "t_start": 2.0, "signals": ["depth_disturbance", "depth_disturbance_cdo"]}])
+    res = run(exp)
+    rows = res.metrics.set_index(["variant", "signal"])["value"]
+    assert ("rise", "depth_disturbance") not in rows.index and ("rise", "depth_disturbance_cdo") in rows.index
+    t, truth, _ = res.traces
+    d = truth["depth_disturbance"][t >= 2.0, 0]
+    assert d.max() - d.min() > 0.1  # m/s^2: the payload's 4 % of the weight, on and off
+    assert rows["cdo_srise", "depth_disturbance"] < 0.5 * np.sqrt(np.mean(d**2))  # 0.26 (an estimate of 0: 1)
+
+
 def test_a_controller_without_an_observer_is_scored_at_the_samples_on_the_reference():
     """``*_meas`` of a run seen through no observer: the reference at the sample instant against the sample, so
     a moving reference enters it (depth from 0.1 m to 0.3 m over 1 s, sampled at 0.5 s)."""

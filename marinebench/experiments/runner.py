@@ -402,8 +402,11 @@ def _tidy(exp: Experiment, values: list[tuple[str, dict[str, np.ndarray]]], esti
 def _estimated_signals(groups: list[ObserverGroup], world, n_runs: int) -> list[set[str]]:
     """Per run, the signals its observer (or the world, e.g. a closed loop's tracking) produces; ``z`` (the
     J_tot state) when all of the DP state is among them."""
-    common = set(world.estimates(0.0, world.x0)) if hasattr(world, "estimates") else set()
-    out = [set(common) for _ in range(n_runs)]
+    if hasattr(world, "signals_of_runs"):  # a world whose runs report different estimates (the ROV's disturbances)
+        out = world.signals_of_runs()
+    else:
+        common = set(world.estimates(0.0, world.x0)) if hasattr(world, "estimates") else set()
+        out = [set(common) for _ in range(n_runs)]
     for g in groups:
         for b in g.index:
             out[b] |= set(g.observer.signals)

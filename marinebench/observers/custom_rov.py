@@ -9,8 +9,8 @@ The class follows the protocol of :mod:`marinebench.observers.custom` with ``"ro
     which the world records against the truth and a controller with ``feedback: custom`` is fed; and optionally
     ``depth_disturbance`` and/or ``yaw_disturbance``: the lumped disturbance as an acceleration [m/s^2, rad/s^2]
     (the CDO's x_hat_3: eta_ddot = tau / inertia + d), which such a controller with ``disturbance_feedforward``
-    subtracts, times the nominal inertia, from its command as it does the CDO's (not recorded: the world has no
-    truth of it);
+    subtracts, times the nominal inertia, from its command as it does the CDO's, and the world records against its
+    truth (:mod:`marinebench.rov_scenario`);
 ``__init__(self, params: list[dict], plant: RovObserverPlant, dt: float)``
     ``plant`` says what the built-in CDO and EO are given: the nominal inertia, each run's initial estimate, the
     sample and control periods (:class:`RovObserverPlant`);

@@ -15,7 +15,10 @@ from matplotlib.ticker import LogFormatterSciNotation
 from marinebench.config import Experiment, FigureSpec
 
 UNITS = {"depth": "m", "yaw": "rad", "tau_depth": "N", "tau_yaw": "N m", "u": "m/s", "v": "m/s", "r": "rad/s", "sigma_u": "m/s²", "sigma_v": "m/s²", "sigma_r": "rad/s²",
-         "x": "m", "y": "m", "psi": "rad", "b_x": "N", "b_y": "N", "b_n": "N m"}
+         "x": "m", "y": "m", "psi": "rad", "b_x": "N", "b_y": "N", "b_n": "N m", "depth_rate": "m/s", "yaw_rate": "rad/s",
+         "depth_disturbance": "m/s²", "yaw_disturbance": "rad/s²"}
+UNITS |= {f"{s}_{of}": UNITS[s] for s in ("depth", "yaw", "depth_disturbance", "yaw_disturbance") for of in ("cdo", "eo")}
+UNITS |= {f"{s}_meas": UNITS[s] for s in ("depth", "yaw")}
 NAMES = {"u": "surge u", "v": "sway v", "r": "yaw rate r", "sigma_u": "σ_u", "sigma_v": "σ_v", "sigma_r": "σ_r",
          "x": "north x", "y": "east y", "psi": "heading ψ", "b_x": "bias b_N", "b_y": "bias b_E", "b_n": "bias b_ψ"}
 
