@@ -545,6 +545,18 @@ QUOTES = [
     Quote("docs/tijjani.md", "the CDO's error is below\n  the EO's in both DOFs: depth −{} % and yaw −{} % against the truth (−{} % and −{} % against the samples)",
           lambda: [-change((OBS, "cdo", s, "rmse_steady"), (OBS, "eo", s, "rmse_steady"))
                    for s in ("depth", "yaw", "depth_meas", "yaw_meas")]),
+    Quote("docs/tijjani.md", "{} against {} m/s² in depth (−{} %) and {} against {} rad/s² in yaw (−{} %)",
+          lambda: [x for s in ("depth", "yaw") for x in
+                   (mean(OBS, "cdo", f"{s}_disturbance", "rmse_disturbance"), mean(OBS, "eo", f"{s}_disturbance", "rmse_disturbance"),
+                    -change((OBS, "cdo", f"{s}_disturbance", "rmse_disturbance"),
+                            (OBS, "eo", f"{s}_disturbance", "rmse_disturbance")))]),
+    Quote("docs/tijjani.md", "started at the truth\n  (`tijjani_observers_no_initial_error`), −{} % and −{} %",
+          lambda: [-change((OBS0, "cdo", f"{s}_disturbance", "rmse_disturbance"),
+                           (OBS0, "eo", f"{s}_disturbance", "rmse_disturbance")) for s in ("depth", "yaw")]),
+    Quote("README.md", "the CDO's disturbance error is {} m/s² in depth and {}\nrad/s² in yaw, {} % and {} % below the EO's",
+          lambda: [mean(OBS, "cdo", f"{s}_disturbance", "rmse_disturbance") for s in ("depth", "yaw")]
+          + [-change((OBS, "cdo", f"{s}_disturbance", "rmse_disturbance"), (OBS, "eo", f"{s}_disturbance", "rmse_disturbance"))
+             for s in ("depth", "yaw")]),
     Quote("docs/tijjani.md", "(CDO +{} % depth, +{} %\n  yaw; against the samples +{} % and −{} %;",
           lambda: [change((OBS, "cdo", s, "rmse"), (OBS, "eo", s, "rmse")) for s in ("depth", "yaw", "depth_meas")]
           + [-change((OBS, "cdo", "yaw_meas", "rmse"), (OBS, "eo", "yaw_meas", "rmse"))]),
