@@ -21,7 +21,7 @@ M_hat. A run observed through the CDO, the EO or a custom observer estimating it
 from __future__ import annotations
 
 import itertools
-from collections.abc import Collection
+from collections.abc import Callable, Collection, Iterator, Mapping
 from typing import Literal
 
 import numpy as np
@@ -37,6 +37,7 @@ from marinebench.settings import STRICT
 ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo",
                "depth_disturbance", "yaw_disturbance", "depth_disturbance_cdo", "yaw_disturbance_cdo",
                "depth_disturbance_eo", "yaw_disturbance_eo")  # est - truth pairs
+DISTURBANCE_SIGNALS = tuple(s for s in ROV_SIGNALS if "disturbance" in s)  # truth: one plant evaluation per step
 OBSERVE = {None: 0, "cdo": 1, "eo": 2, "custom": 3}  # the estimate a run reports: the reference (none) or an observer's
 
 
@@ -213,6 +214,14 @@ PLANT_SCALES = create_model("PlantScales", **{key: (float, RovScenario.model_fie
                                               for key in ("damping_scale", "buoyancy_scale")})
 
 
+def _disturbances_estimated(observer) -> set[str]:
+    """The disturbances (``depth_disturbance``, ``yaw_disturbance``) a run's observer estimates: both for the CDO and
+    the EO, a custom observer's among its signals, none without an observer."""
+    if observer is None:
+        return set()
+    return set(ROV_DISTURBANCES) & set(observer.estimated_signals()) if observer.kind == "custom" else set(ROV_DISTURBANCES)
+
+
 def _per_run(params, gain) -> np.ndarray:
     """``gain(p)`` for each run's settings ``p``, computed once per distinct setting (a CDO design solves an LMI)."""
     once = {}
@@ -221,6 +230,26 @@ def _per_run(params, gain) -> np.ndarray:
         if key not in once:
             once[key] = gain(p)
     return np.array([once[p.model_dump_json()] for p in params])
+
+
+class OnDemand(Mapping):
+    """Signals by name, some of them (``later``, computed together by ``compute()``) only when first read: a world's
+    truth at a step whose recorders may not read them all (the disturbances cost a plant evaluation, about 10 % of an
+    S1 run, and are read only by a metric of them, or at the traced steps). All names are keys from the start."""
+
+    def __init__(self, values: dict[str, np.ndarray], later: tuple[str, ...], compute: Callable[[], dict]) -> None:
+        self._values, self.later, self._compute = values, later, compute
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._values and name in self.later:
+            self._values.update(self._compute())
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([*self._values, *(name for name in self.later if name not in self._values)])
+
+    def __len__(self) -> int:
+        return len(self._values.keys() | set(self.later))
 
 
 class RovWorld:
@@ -281,10 +310,7 @@ class RovWorld:
         self._rates = np.maximum(_per_run(cdos, CdoParams.max_rate), _per_run(eos, EoParams.max_rate))
         self._rates = np.maximum(self._rates, self.custom.rates())
         self.feedback = [spec.feedback for spec, _ in controllers]
-        # per run, the disturbances its observer estimates: all for the CDO and the EO, a custom one's own signals
-        self.disturbances_of_runs = [set(ROV_DISTURBANCES) if o is not None and o.kind != "custom"
-                                     else set(ROV_DISTURBANCES) & set(o.estimated_signals()) if o is not None else set()
-                                     for o in observers]
+        self.disturbances_of_runs = [_disturbances_estimated(o) for o in observers]
         self.y = self.x0[:, :2].copy()  # held samples [depth, yaw]
         self.ydot = np.zeros((B, 2))  # held rates fed to measurement-fed controllers (sensors.depth_rate, yaw_rate)
         self.at_sample = np.repeat(self.x0[None, :, :2], 4, axis=0)  # reference, CDO, EO, custom estimate at the last sample
@@ -410,13 +436,15 @@ class RovWorld:
         truth whichever estimate a run reports: INT's start)."""
         z, psi = x[:, 0], x[:, 1]
         ref = np.broadcast_to(self.reference(t)[0][:, None], (2, z.size))
+        return OnDemand({"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3], "depth_ref": ref[0],
+                         "yaw_ref": ref[1], "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
+                         "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
+                         "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi},
+                        DISTURBANCE_SIGNALS, lambda: self._disturbances(t, x))
+
+    def _disturbances(self, t: float, x: np.ndarray) -> dict[str, np.ndarray]:
         d = self.disturbance(t, x)
-        return {"depth": z, "yaw": psi, "depth_rate": x[:, 2], "yaw_rate": x[:, 3], "depth_ref": ref[0], "yaw_ref": ref[1],
-                "tau_depth": self.tau[:, 0], "tau_yaw": self.tau[:, 1],
-                "depth_meas": self.y[:, 0].copy(), "yaw_meas": self.y[:, 1].copy(),
-                "depth_cdo": z, "yaw_cdo": psi, "depth_eo": z, "yaw_eo": psi,
-                "depth_disturbance": d[:, 0], "yaw_disturbance": d[:, 1], "depth_disturbance_cdo": d[:, 0],
-                "yaw_disturbance_cdo": d[:, 1], "depth_disturbance_eo": d[:, 0], "yaw_disturbance_eo": d[:, 1]}
+        return {name: d[:, 0 if name.startswith("depth") else 1] for name in DISTURBANCE_SIGNALS}
 
     def disturbance(self, t: float, x: np.ndarray) -> np.ndarray:
         """``(B, 2)``: the true lumped disturbance d = eta_ddot - tau_c / M_hat of depth [m/s^2] and yaw [rad/s^2] at

@@ -371,6 +371,26 @@ def test_the_cdo_follows_the_payloads_disturbance_and_a_run_without_an_observer_
     assert rows["cdo_srise", "depth_disturbance"] < 0.5 * np.sqrt(np.mean(d**2))  # 0.26 (an estimate of 0: 1)
 
 
+def test_the_disturbance_truth_is_computed_only_at_the_steps_something_reads_it(tmp_path, monkeypatch):
+    """It costs a plant evaluation per step: computed once at each step of a run with a metric of it, at the traced
+    steps of a run that traces it, and not at all otherwise (the truth is an ``OnDemand`` mapping that names it)."""
+    calls = []
+    original = RovWorld.disturbance
+    monkeypatch.setattr(RovWorld, "disturbance", lambda self, t, x: calls.append(t) or original(self, t, x))
+    variants = [{"name": "cdo", "controller": {"kind": "srise", "feedback": "cdo"}, "observer": {"kind": "cdo"}}]
+    plain, _ = experiment(tmp_path, variants, "scenario.horizon=1")
+    with_metric, _ = experiment(tmp_path, variants, "scenario.horizon=1", metrics=[
+        {"kind": "rmse", "t_start": 0.0, "signals": ["depth", "depth_disturbance", "yaw_disturbance_eo"]}])
+    n_steps = round(1 / plain.scenario.dt)
+    run(plain, traces=False)
+    assert calls == []
+    run(with_metric, traces=False)
+    assert len(calls) == n_steps + 1 == len(set(calls))
+    calls.clear()
+    run(plain, traces=True)
+    assert len(calls) == round(1 / plain.engine.trace_dt) + 1
+
+
 def test_a_controller_without_an_observer_is_scored_at_the_samples_on_the_reference():
     """``*_meas`` of a run seen through no observer: the reference at the sample instant against the sample, so
     a moving reference enters it (depth from 0.1 m to 0.3 m over 1 s, sampled at 0.5 s)."""
