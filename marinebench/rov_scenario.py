@@ -235,7 +235,8 @@ def _per_run(params, gain) -> np.ndarray:
 class OnDemand(Mapping):
     """Signals by name, some of them (``later``, computed together by ``compute()``) only when first read: a world's
     truth at a step whose recorders may not read them all (the disturbances cost a plant evaluation, about 10 % of an
-    S1 run, and are read only by a metric of them, or at the traced steps). All names are keys from the start."""
+    S1 run, and are read only by a metric of them, or at the traced steps). All names are keys from the start.
+    ``compute`` reads the world as it is when first called: the engine's recorders read the truth within its step."""
 
     def __init__(self, values: dict[str, np.ndarray], later: tuple[str, ...], compute: Callable[[], dict]) -> None:
         self._values, self.later, self._compute = values, later, compute
