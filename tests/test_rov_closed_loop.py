@@ -353,9 +353,8 @@ def test_the_disturbance_is_the_acceleration_that_the_command_over_the_nominal_i
 
 def test_the_cdo_follows_the_payloads_disturbance_and_a_run_without_an_observer_has_no_such_rows(tmp_path):
     """S2-C1 (the payload hangs, then rests on the floor from 0.25 m): the CDO-S+RISE run's disturbance estimate
-    follows the truth, its RMSE within half the truth's RMS after the first 2 s (0.26: the depth sensor's
-    noise); the RISE run (no observer)
-    reports no depth_disturbance, but the CDO it carries does (depth_disturbance_cdo)."""
+    follows the truth, its RMSE within half the truth's RMS after the first 2 s (0.26: the depth sensor's noise);
+    the RISE run (no observer) reports no depth_disturbance, but the CDO it carries does (depth_disturbance_cdo)."""
     exp, _ = experiment(tmp_path, [
         {"name": "cdo_srise", "controller": {"kind": "srise", "feedback": "cdo", "disturbance_feedforward": True},
          "observer": {"kind": "cdo"}},
