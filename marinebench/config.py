@@ -72,15 +72,20 @@ class Variant(BaseModel):
             raise ValueError("give an 'observer' or a 'controller'")
         if self.controller is not None and self.observer is not None and self.observer.kind not in ("cdo", "eo", "custom"):
             raise ValueError(f"a closed-loop variant can be observed through 'cdo', 'eo' or 'custom', not '{self.observer.kind}'")
-        if self.controller is not None and self.controller.feedback == "custom" and getattr(self.observer, "kind", None) != "custom":
+        if self.controller is not None and self.controller.feedback == "custom":
+            self._custom_feedback()
+        return self
+
+    def _custom_feedback(self) -> None:
+        """``feedback: custom`` needs the variant's own observer, estimating the disturbances it feeds forward."""
+        if getattr(self.observer, "kind", None) != "custom":
             raise ValueError("feedback 'custom' feeds the controller the variant's own observer: give observer: "
                              "{kind: custom, source: file.py:Class}")
-        if self.controller is not None and self.controller.feedback == "custom":
-            fed = [f"{dof}_disturbance" for dof, ff in zip(("depth", "yaw"), self.controller.feedforward_mask()) if ff]
-            if missing := [s for s in fed if s not in self.observer.estimated_signals()]:
-                raise ValueError(f"disturbance_feedforward with feedback 'custom' feeds forward the observer's "
-                                 f"{' and '.join(missing)}, not among its signals {list(self.observer.estimated_signals())}")
-        return self
+        own = self.observer.estimated_signals()
+        fed = [f"{dof}_disturbance" for dof, ff in zip(("depth", "yaw"), self.controller.feedforward_mask()) if ff]
+        if missing := [s for s in fed if s not in own]:
+            raise ValueError(f"disturbance_feedforward with feedback 'custom' feeds forward the observer's "
+                             f"{' and '.join(missing)}, not among its signals {list(own)}")
 
 
 class ErrorMetric(BaseModel):
