@@ -21,7 +21,7 @@ the finite-time reconstruction is biased and resets fire spuriously.
 from __future__ import annotations
 
 from collections.abc import Collection
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, model_validator
@@ -134,6 +134,13 @@ class DpScenario(ScenarioBase):
     """A DP station-keeping world (Torben et al.)."""
 
     kind: Literal["dp_supply"] = "dp_supply"
+    SIGNALS: ClassVar[dict[str, str]] = {
+        "x": "north position [m]", "y": "east position [m]", "psi": "heading [rad]",
+        "b_x": "bias load, north [N] (the truth adds the events' loads)", "b_y": "bias load, east [N]",
+        "b_n": "bias load, yaw [N m]", "u": "surge velocity [m/s]", "v": "sway velocity [m/s]", "r": "yaw rate [rad/s]",
+        "sigma_u": "lumped disturbance of surge, Bejarano eq. (6), on the observers' design model [m/s²] (when an "
+                   "experiment asks for it or runs bejarano or liu_eso)",
+        "sigma_v": "the same of sway [m/s²]", "sigma_r": "the same of yaw [rad/s²]"}
     vessel: SupplyParams = Field(default_factory=SupplyVesselParams, description="the plant (simulated vessel)")
     design_vessel: SupplyParams | None = Field(
         None, description="the vessel model (M, D, L) the observers are designed and run on; default: the plant's. "

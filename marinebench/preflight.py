@@ -249,7 +249,7 @@ def _preflight_figures(exp: Experiment, file: Path, groups: list) -> None:
     for f in exp.figures:
         if bad := [s for s in f.signals if s not in usable]:
             raise ConfigError(file, "figures", f"{f.file}: no trace of {bad} on this world (a figure may show: "
-                              f"{', '.join(sorted(usable))})")
+                              f"{', '.join(sorted(usable))}; `marinebench list {exp.scenario.kind}` says what each is)")
 
 
 def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
@@ -259,7 +259,9 @@ def _preflight_metrics(exp: Experiment, file: Path, groups: list) -> None:
     for j, m in enumerate(exp.metrics):
         if m.kind not in ("j_tot", "int", "recovery"):
             if bad := set(m.signals) - signals:
-                hint = did_you_mean(near_misses(min(bad), sorted(signals))) or f" (estimated here: {', '.join(sorted(signals))})"
+                hint = (did_you_mean(near_misses(min(bad), sorted(signals)))
+                        or f" (estimated here: {', '.join(sorted(signals))}; `marinebench list {exp.scenario.kind}` "
+                           "says what each is)")
                 raise ConfigError(file, f"metrics.{j}.signals", f"unknown signals {sorted(bad)}{hint}")
             if truth is not None and set(m.signals) - set(truth):
                 raise ConfigError(file, f"metrics.{j}.signals", f"{sorted(set(m.signals) - set(truth))}: an "

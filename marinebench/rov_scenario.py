@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable, Collection, Iterator, Mapping
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, create_model, model_validator
@@ -34,9 +34,25 @@ from marinebench.scenario import ScenarioBase, stream_rngs
 from marinebench.sensors.gauss_markov import gm_step
 from marinebench.settings import STRICT
 
-ROV_SIGNALS = ("depth", "yaw", "depth_rate", "yaw_rate", "depth_meas", "yaw_meas", "depth_cdo", "yaw_cdo", "depth_eo", "yaw_eo",
-               "depth_disturbance", "yaw_disturbance", "depth_disturbance_cdo", "yaw_disturbance_cdo",
-               "depth_disturbance_eo", "yaw_disturbance_eo")  # est - truth pairs
+#: est - truth pairs: each signal with what it is ("marinebench list rov_tracking")
+ROV_SIGNAL_DOCS = {
+    "depth": "the run's estimate of depth [m]: its observer's (observer:), else the reference (so est - truth is the "
+             "tracking error)",
+    "yaw": "the same of yaw [rad]", "depth_rate": "the same of the heave rate [m/s]",
+    "yaw_rate": "the same of the yaw rate [rad/s]",
+    "depth_meas": "the run's depth estimate at the last sample instant against that sample [m] (the observation "
+                  "error a pool experiment can measure)", "yaw_meas": "the same of yaw [rad]",
+    "depth_cdo": "the CDO's depth estimate, in every run [m]", "yaw_cdo": "the CDO's yaw estimate, in every run [rad]",
+    "depth_eo": "the extended high-gain observer's depth estimate, in every run [m]",
+    "yaw_eo": "the extended high-gain observer's yaw estimate, in every run [rad]",
+    "depth_disturbance": "the run's observer's estimate of the lumped depth disturbance d = z'' - tau_c / M_hat "
+                         "[m/s²] (no rows for runs whose observer has none)",
+    "yaw_disturbance": "the same of yaw [rad/s²]",
+    "depth_disturbance_cdo": "the CDO's estimate of it (x3), in every run [m/s²]",
+    "yaw_disturbance_cdo": "the same of yaw [rad/s²]",
+    "depth_disturbance_eo": "the extended high-gain observer's estimate of it, in every run [m/s²]",
+    "yaw_disturbance_eo": "the same of yaw [rad/s²]"}
+ROV_SIGNALS = tuple(ROV_SIGNAL_DOCS)
 DISTURBANCE_SIGNALS = tuple(s for s in ROV_SIGNALS if "disturbance" in s)  # truth: one plant evaluation per step
 OBSERVE = {None: 0, "cdo": 1, "eo": 2, "custom": 3}  # the estimate a run reports: the reference (none) or an observer's
 
@@ -110,6 +126,7 @@ class RovScenario(ScenarioBase):
     """A closed-loop ROV tracking world (Tijjani et al. scenarios)."""
 
     kind: Literal["rov_tracking"] = "rov_tracking"
+    SIGNALS: ClassVar[dict[str, str]] = ROV_SIGNAL_DOCS
     vessel: LeonardLikeParams = Field(default_factory=LeonardLikeParams, description="the ROV model (an assumed "
                                       "Leonard-like stand-in)")
     depth_ref: list[tuple[float, float]] = Field(..., min_length=1, description="(t [s], depth [m]) waypoints")

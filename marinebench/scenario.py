@@ -91,6 +91,10 @@ class ScenarioBase(BaseModel):
     #: Steps per run above which a horizon is refused as a typo: 1e8 steps of the fastest world take hours
     #: and its per-run arrays (noise draws, references) would no longer fit in memory.
     MAX_STEPS: ClassVar[int] = 10**8
+    #: The signals a metric's or a figure's ``signals:`` may name on this kind of world, each an estimate scored
+    #: against the world's truth of it (est - truth), with what it is ("marinebench list <kind>"). Which of them a
+    #: run has depends on its observer.
+    SIGNALS: ClassVar[dict[str, str]] = {}
 
     @model_validator(mode="after")
     def _steps_in_range(self) -> ScenarioBase:
@@ -133,6 +137,12 @@ class Scenario(ScenarioBase):
     """An open-loop ASV world (Bejarano et al. Sec. IV)."""
 
     kind: Literal["open_loop_asv"] = "open_loop_asv"
+    SIGNALS: ClassVar[dict[str, str]] = {
+        "u": "surge velocity [m/s]", "v": "sway velocity [m/s]", "r": "yaw rate [rad/s]",
+        "sigma_u": "lumped disturbance of surge, Bejarano eq. (6) [m/s²]", "sigma_v": "the same of sway [m/s²]",
+        "sigma_r": "the same of yaw [rad/s²]",
+        "x": "north position [m] (npo, resetting_fto: on the linear model (41))",
+        "y": "east position [m]", "psi": "heading [rad]"}
     vessel: CyberShip2Params = Field(default_factory=CyberShip2Params, description="the CyberShip II model's coefficients")
     initial: Initial = Field(default_factory=Initial, description="the initial pose and velocities")
     inputs: Inputs = Field(default_factory=Inputs, description="the open-loop control forces, drawn per seed")

@@ -175,7 +175,7 @@ BAD = {
                        "metrics.1.signals: unknown signals ['sigma_uu'] (did you mean sigma_u"),
     "unknown_signal_far_off": (lambda d: d["metrics"].append({"kind": "rmse", "t_start": 0.0, "signals": ["speed"]}),
                                ("metrics.1.signals: unknown signals ['speed'] (estimated here: r, sigma_r, sigma_u, "
-                                "sigma_v, u, v)")),
+                                "sigma_v, u, v; `marinebench list open_loop_asv` says what each is)")),
     # checks across keys name the key they are about and what is there instead
     "duplicate_variant_names": (lambda d: d["variants"][1].update(name="liu_eps0.2"),
                                 "variants: duplicate names ['liu_eps0.2']"),
@@ -195,7 +195,8 @@ BAD = {
                         "table.paper.values: liu_eps0.2: ['x'] are not keyed as the table reads them: a signal of std"),
     # before, the figure failed after the whole simulation, with a traceback (KeyError)
     "figure_signal": (lambda d: d["figures"][0].update(signals=["nope"]),
-                      "figures: u.png: no trace of ['nope'] on this world (a figure may show: r, sigma_r, sigma_u, sigma_v, u, v)"),
+                      ("figures: u.png: no trace of ['nope'] on this world (a figure may show: r, sigma_r, sigma_u, "
+                       "sigma_v, u, v; `marinebench list open_loop_asv` says what each is)")),
     # these ran before, writing an empty figure, a table of n/a or one figure over another
     "figure_time_range": (lambda d: d["figures"][0].update(t_range=[3, 1]),
                           "figures.0.t_range: [3.0, 1.0]: the start must be before the end"),
@@ -909,6 +910,38 @@ def test_list_of_a_kind_gives_its_settings_with_type_default_and_meaning():
     common = ["feedback", "output_scale", "disturbance_feedforward"]
     assert names == {"rise": [*common, "preset", "depth", "yaw"], "srise": [*common, "depth", "yaw"]}
     assert [line.split()[0] for line in controllers] == [*common, "source", "params"]
+
+
+@pytest.mark.parametrize("config", ["bejarano_table3", "torben_fig1", "tijjani_observers"])
+def test_a_scenario_kind_lists_the_signals_its_world_scores_and_only_those(config):
+    """`list <scenario kind>` names every signal a metric or figure may name there, each once with what it is: each
+    has an estimate (from some observer) and a truth in a world of that kind. Before, nothing listed them."""
+    import numpy as np
+
+    from marinebench.experiments.runner import make_world
+    from marinebench.loading import load_experiment
+
+    exp, _ = load_experiment(ROOT / "configs" / f"{config}.yaml")
+    kind, runs = exp.scenario.kind, np.arange(len(exp.variants))
+    world = make_world(exp, runs, np.zeros_like(runs))
+    if kind == "dp_supply":  # its lumped disturbance only when an experiment asks for it
+        from marinebench.dp_scenario import DpWorld
+
+        world = DpWorld(exp.scenario, 0, np.zeros(1, dtype=int), lumped=True)
+    truth = set(world.truth(0.0, world.x0))
+    if kind == "rov_tracking":  # the world's own observers
+        estimated = set(world.estimates(0.0, world.x0))
+    else:  # the built-in observers, which run on both ship worlds (the DP ones reporting the lumped disturbance)
+        from marinebench.observers.bejarano import BejaranoObserver
+        from marinebench.observers.dp import LUMPED_SIGNALS, DpObserver
+        from marinebench.observers.liu_eso import LiuEsoObserver
+
+        estimated = {*BejaranoObserver.signals, *LiuEsoObserver.signals, *DpObserver.signals, *LUMPED_SIGNALS}
+    listed = exp.scenario.SIGNALS
+    assert set(listed) == truth & estimated, listed
+    res = runner.invoke(app, ["list", kind], env={"COLUMNS": "250"})
+    lines = res.output.split("signals (what a metric's or figure's signals: may name; est - truth):\n")[1].splitlines()
+    assert [line.split()[0] for line in lines] == list(listed) and all(len(line.split()) > 2 for line in lines)
 
 
 def test_a_setting_another_controller_kind_reads_is_refused():

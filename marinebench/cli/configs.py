@@ -102,7 +102,7 @@ def list_kinds(
 
     Each observer shows the scenario kinds it runs on. `marinebench list observers` lists one group;
     `marinebench list bejarano` lists one kind's settings (the keys of its YAML mapping, and what a sweep's KEY may
-    name), with type, default and meaning."""
+    name), with type, default and meaning; a scenario kind's also the signals its metrics and figures may name."""
     from marinebench.keypaths import did_you_mean, near_misses
     from marinebench.registry import kind_models, kinds
 
@@ -137,3 +137,8 @@ def _print_settings(kind: str, registered: dict, models: dict) -> None:
         width = max((len(name) for name, *_ in rows), default=0)
         for name, type_, default, text in rows:
             out.print(f"  {name:<{width}}  {type_} = {default}" + (f"  {text}" if text else ""), markup=False)
+        if signals := getattr(entries[kind], "SIGNALS", {}):
+            out.print("  [bold]signals[/bold] (what a metric's or figure's signals: may name; est - truth):")
+            width = max(map(len, signals))
+            for name, text in signals.items():
+                out.print(f"  {name:<{width}}  {text}", markup=False)
