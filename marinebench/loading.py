@@ -420,7 +420,7 @@ def load_experiment(path: str | Path, sets: list[str] = (), profile: str | None 
     """Load and validate an experiment config; raises ConfigError naming the file and key."""
     path = Path(path)
     doc, origins = resolve_document(path, sets, profile)
-    if "variants" not in doc and is_scenario_file(path):
+    if not _experiment_only(doc) and is_scenario_file(path):
         raise ConfigError(path, "", "a scenario file (a world), not an experiment: experiments name it under "
                           "'scenario:' (marinebench validate checks scenario files)")
     try:
@@ -469,13 +469,19 @@ def load_scenario(path: str | Path):
     return scenario
 
 
+def _experiment_only(doc: dict) -> bool:
+    """Whether ``doc`` has a key only experiments have (``variants``, ``scenario``, ``metrics``, ...; ``name`` and
+    ``description`` both have). Before, an experiment without its ``variants`` was read as a scenario file."""
+    return bool(doc.keys() & (Experiment.model_fields.keys() - {"name", "description"}))
+
+
 def is_scenario_file(path: Path, _depth: int = 0) -> bool:
-    """A scenario document has no ``variants`` key, nor does the file its ``from:`` starts from."""
+    """A scenario document has no key only experiments have, nor does the file its ``from:`` starts from."""
     try:
         doc = read_yaml(path)
     except ConfigError:
         return False
-    if "variants" in doc:
+    if _experiment_only(doc):
         return False
     base = doc.get("from")
     if isinstance(base, str) and _depth < 20 and (path.parent / base).exists():

@@ -1027,6 +1027,12 @@ def test_wrong_kind_of_input_is_one_line(tmp_path):
     assert res.exit_code == 2 and res.output.strip() == (
         f"error: {scenario}: a scenario file (a world), not an experiment: experiments name it under 'scenario:' "
         "(marinebench validate checks scenario files)")
+    # an experiment that lacks its variants is still an experiment (before: read as a scenario file, by run and validate)
+    unfinished = tmp_path / "unfinished.yaml"
+    unfinished.write_text(yaml.safe_dump({"name": "x", "scenario": str(scenario), "metrics": [{"kind": "rmse"}]}))
+    for command in ("run", "validate"):
+        res = runner.invoke(app, [command, str(unfinished), *(["--out", str(tmp_path / "o")] if command == "run" else [])])
+        assert res.exit_code == 2 and res.output.strip() == f"error: {unfinished}: variants: Field required", res.output
     bench = runner.invoke(app, ["bench", "--config", str(ROOT / "configs" / "bejarano_table4.yaml"), "--params", "delta_p1"])
     assert bench.exit_code == 2 and "reference of the DP observers, which exists for dp_supply scenarios" in bench.output
     assert not (tmp_path / "o").exists()
