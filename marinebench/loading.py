@@ -170,15 +170,30 @@ def _child(node: Any, part: str | tuple[str], key: str) -> int | str:
             raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
         match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
         if not match:
-            raise ConfigError("--set", key, f"no item named '{part[0]}'")
+            names = [item["name"] for item in node if isinstance(item, dict) and isinstance(item.get("name"), str)]
+            raise ConfigError("--set", key, f"no item named '{part[0]}'" + (f" (have: {', '.join(names)})" if names else ""))
         return match[0]
     if isinstance(node, list):
         if not part.isdigit() or int(part) >= len(node):
-            raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1})")
+            raise ConfigError("--set", key, f"'{part}' is not a valid index (0..{len(node) - 1}){_by_name(node, part, key)}")
         return int(part)
     if isinstance(node, dict):
         return part
     raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
+
+
+def _by_name(node: list, part: str, key: str) -> str:
+    """The hint for a list item named as a mapping's key (``variants.rise``, or ``variants.proposed_d1.2``, whose
+    name has a dot): the key with the ``[name]`` selector; for another word, the names there are; else ''."""
+    names = [item["name"] for item in node if isinstance(item, dict) and isinstance(item.get("name"), str)]
+    if part.isdigit() or not names:
+        return ""
+    for name in sorted(names, key=len, reverse=True):  # the longest name the key spells out from this part on
+        if name == part or name.startswith(part + "."):
+            fixed, found = re.subn(rf"\.{re.escape(name)}(?=\.|$)", f"[{name}]", key.strip(), count=1)
+            if found:
+                return f" (did you mean {fixed}? an item is selected by its name in brackets)"
+    return f" (its items by name: {', '.join(f'[{name}]' for name in names)})"
 
 
 def _check_world_key(doc: dict, key: str, where: list[str]) -> None:

@@ -273,7 +273,8 @@ def test_a_bad_profile_entry_names_the_config_file(tiny_config, tmp_path):
     assert res.exit_code == 2 and res.output.startswith(f"error: {tiny_config}: scenario.horizon: "), res.output
     res = runner.invoke(app, ["run", str(tiny_config), "--profile", "typo", "--out", str(tmp_path / "out")])
     assert not (tmp_path / "out").exists()
-    assert res.exit_code == 2 and res.output.strip() == f"error: {tiny_config}: profiles.typo.0: variants[nope].observer.eps: no item named 'nope'"
+    assert res.exit_code == 2 and res.output.strip() == (f"error: {tiny_config}: profiles.typo.0: variants[nope].observer.eps: no item named 'nope' (have: liu_eps0.2, "
+                                                        "proposed_d1.2)")
 
 
 def test_invalid_yaml(tmp_path):
@@ -298,11 +299,19 @@ def test_a_config_that_is_no_mapping_or_no_file_is_one_line(text, expected, tmp_
 
 
 @pytest.mark.parametrize("dotted, expected", [
-    ("variants[nope].observer.eps=1", "variants[nope].observer.eps: no item named 'nope'"),
+    ("variants[nope].observer.eps=1", "variants[nope].observer.eps: no item named 'nope' (have: liu_eps0.2, proposed_d1.2)"),
+    # a name written as a key (before: only "not a valid index"), also one with a dot in it, and another word
+    ("variants.liu_eps0.2.observer.eps=1", ("variants.liu_eps0.2.observer.eps: 'liu_eps0' is not a valid index (0..1) "
+     "(did you mean variants[liu_eps0.2].observer.eps? an item is selected by its name in brackets)")),
+    ("variants.proposed_d1.2=1", ("variants.proposed_d1.2: 'proposed_d1' is not a valid index (0..1) (did you mean "
+     "variants[proposed_d1.2]? an item is selected by its name in brackets)")),
+    ("variants.liu.eps=1", ("variants.liu.eps: 'liu' is not a valid index (0..1) (its items by name: [liu_eps0.2], "
+     "[proposed_d1.2])")),
+    ("variants.2.eps=1", "variants.2.eps: '2' is not a valid index (0..1)"),
     ("seeds[x]=1", "seeds[x]: '[x]' selects from a list, found int"),
     ("variants.0[liu].eps=1", "variants.0[liu].eps: '[liu]' selects from a list, found dict"),
 ])
-def test_a_set_selecting_by_name_where_there_is_no_such_list_item_is_one_line(dotted, expected, tiny_config):
+def test_a_set_selecting_a_list_item_that_is_not_there_is_one_line(dotted, expected, tiny_config):
     res = runner.invoke(app, ["validate", str(tiny_config), "--set", dotted])
     assert res.exit_code == 2 and res.output.strip() == f"error: --set: {expected}", res.output
 
