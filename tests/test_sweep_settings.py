@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from typer.testing import CliRunner
 
 from marinebench.cli import app
@@ -196,6 +197,22 @@ def test_cli_sweeps_a_rov_observer_setting(tmp_path):
     assert cdo["param_value"].tolist() == pytest.approx([0.05, 1.0])
     assert cdo["value"].iloc[0] != cdo["value"].iloc[1]
     assert (tmp_path / "tijjani_observers_sweep_lmi_decay_n2_6s" / "figures" / "sweep.png").exists()
+
+
+def test_sweep_applies_a_profile_and_names_it_in_the_folder(tmp_path):
+    """`sweep --profile NAME`, as `run` and `validate` take it (before: no such option): the profile's settings are
+    applied, and the folder is named after it, so that a quick sweep does not replace the full one's."""
+    config = tmp_path / "observers.yaml"
+    config.write_text(yaml.safe_dump({"from": str(OBSERVERS), "profiles": {"short": ["seeds=1", "scenario.horizon=6"]}}))
+    args = ["sweep", "lmi_decay", "--config", str(config), "--n", "2", "--out", str(tmp_path / "o"), "--quiet"]
+    res = CliRunner().invoke(app, [*args, "--profile", "short"])
+    assert res.exit_code == 0, res.output
+    folder = tmp_path / "o" / "observers_sweep_lmi_decay_n2_profile=short"
+    manifest = json.loads((folder / "manifest.json").read_text())
+    assert (manifest["profile"], manifest["horizon"], manifest["seeds"]) == ("short", 6.0, 1)
+    res = CliRunner().invoke(app, [*args, "--profile", "nope"])
+    assert res.exit_code == 2 and res.output.strip() == f"error: {config}: profiles: no profile 'nope' (have: quick, short)"
+    assert [p.name for p in (tmp_path / "o").iterdir()] == [folder.name]
 
 
 @pytest.mark.parametrize("sets, expected", [

@@ -11,6 +11,7 @@ import typer
 
 from marinebench.cli.common import (
     DEFAULT_SWEEP,
+    ProfileName,
     Quiet,
     Sets,
     SweepConfig,
@@ -49,6 +50,7 @@ def sweep(
     seeds: Annotated[int | None, typer.Option(metavar="N", min=1, help="Monte-Carlo runs per point (default: the config's); >1 writes "
                                                "<stem>_sweep_<N>seeds/ with intervals")] = None,
     set_: Sets = None,
+    profile: ProfileName = None,
     chunk_size: Annotated[int, typer.Option(metavar="N", help="runs per batch; finished batches survive an interruption")] = 300,
     dask: Annotated[str | None, typer.Option(metavar="local|ADDRESS", help="run the batches on Dask: 'local' (a local cluster) or a "
                                              "scheduler address (tcp://host:8786); needs the 'dask' extra")] = None,
@@ -84,13 +86,14 @@ def sweep(
     _check_sweep_options(chunk_size, jobs, dask, n, horizon, grid, require_claims)
     check_sweep_config(config)
     groups = gnss.split(",") if gnss else None
-    overrides = [*(set_ or []), *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
+    overrides = [*([f"profile={profile}"] if profile else []), *(set_ or []),
+                 *([f"seed={seed}"] if seed is not None else [])]  # named in the folder
     with one_line_errors():
         params, inline = inline_params(params or [])
     overrides = [arg for arg, _ in inline.values()] + overrides  # a parameter given in place names the folder, as --set does
-    sets, unchecked = _claims_in_range(config, set_ or [], inline)
+    sets, unchecked = _claims_in_range(config, set_ or [], inline, profile)
     base, exp, params = _sweep_experiment(config, params, sets, seed, seeds, variants, groups, n, horizon, grid,
-                                          overrides, inline)
+                                          overrides, inline, profile)
     for note in [] if quiet else unchecked:
         err.print(f"note: {config}: {note}", markup=False)
     target = (out_dir if out_dir is not None else Path("results")) / (
@@ -109,6 +112,7 @@ def sweep(
     try:
         claims, mapped = write_sweep(
             target, exp, base, config, metrics, params, grid, started=t0, overrides=set_ or [],
+            **({"profile": profile} if profile else {}),
             n=n or (GRID_N if grid else base.sweep.n), groups=gnss or "all", variants=base.sweep.swept,
             chunk_size=chunk_size, chunks=chunks, chunks_run=ran, executor=executor, wall_time_s=round(wall, 3),
             batch_time_s=round(summed, 3),
@@ -128,7 +132,8 @@ def sweep(
     claims_verdict(require_claims, sum(c.fails for c in claims))
 
 
-def _claims_in_range(config: Path, sets: list[str], inline: dict[str, tuple[str, str]]) -> tuple[list[str], list[str]]:
+def _claims_in_range(config: Path, sets: list[str], inline: dict[str, tuple[str, str]],
+                     profile: str | None = None) -> tuple[list[str], list[str]]:
     """sweep: ``sets``, plus one leaving out the config's sweep claims about a parameter given in place at values
     outside its new range (:func:`~marinebench.experiments.sweep.claims_beyond`), and a note on each left out. A
     config that cannot be read is left to the loading that follows to report."""
@@ -138,7 +143,7 @@ def _claims_in_range(config: Path, sets: list[str], inline: dict[str, tuple[str,
     if not inline:
         return sets, []
     try:
-        doc, _ = resolve_document(config, sets)
+        doc, _ = resolve_document(config, sets, profile)
     except MarinebenchError:
         return sets, []
     claims = doc.get("sweep", {}).get("claims") if isinstance(doc.get("sweep"), dict) else None
@@ -148,7 +153,7 @@ def _claims_in_range(config: Path, sets: list[str], inline: dict[str, tuple[str,
 
 def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: int | None, seeds: int | None,
                       variants: str | None, groups: list[str] | None, n: int | None, horizon: float | None, grid: bool,
-                      overrides: list[str], inline: dict[str, tuple[str, str]]):
+                      overrides: list[str], inline: dict[str, tuple[str, str]], profile: str | None = None):
     """sweep: the loaded experiment (its variants those of ``--variants``, or every one on the sweep's world for
     'all'), the experiment whose variants are the sweep's points, its designs solved (preflight), and the parameters
     swept (``params``, or every one of the config's ``sweep.params`` when none is named)."""
@@ -156,7 +161,7 @@ def _sweep_experiment(config: Path, params: list[str], sets: list[str], seed: in
     from marinebench.preflight import preflight
 
     with one_line_errors():
-        base, _ = load_config(config, sets, seed, seeds, sweep_params=False,  # the parameters are checked below
+        base, _ = load_config(config, sets, seed, seeds, profile, sweep_params=False,  # parameters: checked below
                               variants=None if variants == "all" else variants, inline=inline)
         if variants == "all" and base.sweep is not None:  # every variant that runs on the sweep's scenario
             names = [v.name for v in (base.part(base.sweep_scenario()) if base.scenarios else base).variants]
