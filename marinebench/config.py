@@ -58,7 +58,7 @@ class Variant(BaseModel):
     controller: ControllerSpec | None = Field(None, description="the controller (closed-loop rov_tracking scenarios)")
     world: dict[str, float] = Field(
         default_factory=dict, description="per-run world parameters: position_noise_scale (open_loop_asv); gnss_sigma, "
-        "heading_sigma_deg (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
+        "heading_sigma_deg, gm_time_constant, hs (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
         "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking)"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")

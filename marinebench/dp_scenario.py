@@ -24,7 +24,7 @@ from collections.abc import Collection
 from typing import Annotated, ClassVar, Literal
 
 import numpy as np
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, ValidationError, model_validator
 
 from marinebench.environment.waves import component_amplitudes, dnv_gamma
 from marinebench.models.supply import SupplyParams, SupplyVessel, SupplyVesselParams, bis_scale
@@ -166,12 +166,23 @@ class DpScenario(ScenarioBase):
         return self.design_vessel if self.design_vessel is not None else self.vessel
 
     def per_run_defaults(self) -> dict[str, float]:
-        """Per-run world keys: the GNSS and heading noise levels (e.g. Torben's differential and dual-band GNSS)."""
-        return {"gnss_sigma": self.sensors.gnss_sigma, "heading_sigma_deg": self.sensors.heading_sigma_deg}
+        """Per-run world keys: the GNSS and heading noise levels (e.g. Torben's differential and dual-band GNSS), the
+        Gauss-Markov errors' time constant 1/c, and the significant wave height (0 without ``waves``)."""
+        return {"gnss_sigma": self.sensors.gnss_sigma, "heading_sigma_deg": self.sensors.heading_sigma_deg,
+                "gm_time_constant": self.sensors.gm_time_constant, "hs": self.waves.hs if self.waves is not None else 0.0}
 
     def check_per_run(self, world: dict[str, float]) -> None:
-        """The per-run GNSS and heading noise levels, bounded as the scenario's own ``sensors`` fields are."""
-        DpSensors.model_validate(self.sensors.model_dump() | world)
+        """The per-run settings, bounded as the scenario's own ``sensors`` and ``waves`` fields are; a sea state needs
+        the scenario's ``waves`` (its period, spectrum and RAOs)."""
+        sensors = {key: value for key, value in world.items() if key != "hs"}
+        DpSensors.model_validate(self.sensors.model_dump() | sensors)
+        if "hs" in world:
+            if self.waves is None and world["hs"] > 0:  # a ValidationError at key hs, as the bounds' are
+                raise ValidationError.from_exception_data("DpScenario", [{
+                    "type": "value_error", "loc": ("hs",), "input": world["hs"], "ctx": {"error": (
+                        "this world has no waves (waves: null): give it a sea state, scenario.waves, whose hs a run "
+                        "may change")}}])
+            Waves.model_validate((self.waves or Waves()).model_dump() | {"hs": world["hs"]})
 
     def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """A model mismatch: the observers run on another vessel model than the plant."""
@@ -197,8 +208,9 @@ class DpWorld:
         s, own = sc.sensors, sc.per_run_values(per_run, B)
         gnss, heading = own["gnss_sigma"], np.deg2rad(own["heading_sigma_deg"])
         self.sigma = np.stack([gnss, gnss, heading], axis=1)  # (B, 3) GM driving std
+        time_constant = own["gm_time_constant"][:, None]  # (B, 1): 1/c per run
         if s.sigma_is == "stationary":
-            self.sigma = self.sigma * np.sqrt(1.0 - np.exp(-2.0 * s.ts / s.gm_time_constant))
+            self.sigma = self.sigma * np.sqrt(1.0 - np.exp(-2.0 * s.ts / time_constant))
         self.every = round(s.ts / sc.dt)
         n_samples = int(np.ceil(sc.horizon / s.ts)) + 1
         # standard-normal GM draws, one stream per seed: (B, n_samples, 3)
@@ -209,7 +221,7 @@ class DpWorld:
         if s.sigma_is == "stationary":
             first = np.array([g.standard_normal(3) for g in stream_rngs(root_seed, seeds, "gauss_markov_initial")])
             self.gm = first[where] * np.stack([gnss, gnss, heading], axis=1)
-        self.c = 1.0 / s.gm_time_constant
+        self.c = 1.0 / time_constant
         self.white = None
         if s.heading_noise == "white":  # white heading error: standard normals per seed and step, scaled per run
             n_steps = round(sc.horizon / sc.dt) + 1
@@ -217,18 +229,7 @@ class DpWorld:
             self.white = (draws, where, heading)
             self.sigma[:, 2] = 0.0  # no Gauss-Markov heading error
             self.gm[:, 2] = 0.0
-        # waves: frequencies on an equally spaced grid, phases per seed
-        self.wave = None
-        if sc.waves is not None and sc.waves.hs > 0:
-            w = sc.waves
-            w0 = 2 * np.pi / w.tp
-            gamma = w.gamma if w.gamma is not None else dnv_gamma(w.hs, w.tp)
-            dw = w.w_max_factor * w0 / w.n_components
-            omega = dw * (np.arange(w.n_components) + 0.5)
-            amp = component_amplitudes(omega, np.full_like(omega, dw), w.hs, w.tp, gamma)
-            amp = amp * np.minimum(1.0, (w0 / omega) ** w.rao_rolloff)  # frequency shape of the motion RAO
-            phases = np.array([g.uniform(0, 2 * np.pi, w.n_components) for g in stream_rngs(root_seed, seeds, "waves")])
-            self.wave = (omega, amp, phases, where, np.array(w.rao))  # per seed; runs of a seed share its sea
+        self.wave = self._sea(sc.waves, own["hs"], root_seed, seeds, where)
         self.filter_every = self.every if s.hold == "measurement" else 1
         self.interpolate = s.hold == "noise" and s.between_samples == "linear"
         self.gm_next = self.gm  # the next eq. (48) sample, for 'linear' (drawn at each sample instant)
@@ -243,12 +244,29 @@ class DpWorld:
         self._bias_rate = np.tile(np.array(sc.bias_rate, dtype=float), (B, 1))
         self._sample = 0
 
+    @staticmethod
+    def _sea(w: Waves | None, hs: np.ndarray, root_seed: int, seeds: list[int], where: np.ndarray) -> tuple | None:
+        """The wave-frequency motion's components: frequencies on an equally spaced grid, amplitudes per sea state
+        (each distinct per-run ``hs``), phases per seed (runs of a seed share its sea); None in calm water."""
+        if w is None or not (hs > 0).any():
+            return None
+        w0 = 2 * np.pi / w.tp
+        dw = w.w_max_factor * w0 / w.n_components
+        omega = dw * (np.arange(w.n_components) + 0.5)
+        states, state = np.unique(hs, return_inverse=True)
+        amp = np.array([component_amplitudes(omega, np.full_like(omega, dw), h, w.tp,
+                                             w.gamma if w.gamma is not None else dnv_gamma(h, w.tp)) if h > 0
+                        else np.zeros_like(omega) for h in states])
+        amp = amp * np.minimum(1.0, (w0 / omega) ** w.rao_rolloff)  # frequency shape of the motion RAO
+        phases = np.array([g.uniform(0, 2 * np.pi, w.n_components) for g in stream_rngs(root_seed, seeds, "waves")])
+        return omega, amp, phases, (state, where), np.array(w.rao)
+
     def wave_motion(self, t: float) -> np.ndarray:
         """eta_WF(t) ``(B, 3)``."""
         if self.wave is None:
             return np.zeros_like(self.y)
-        omega, amp, phases, where, rao = self.wave
-        zeta = (amp * np.cos(omega * t + phases)).sum(axis=1)[where]  # per seed, then (B,)
+        omega, amp, phases, (state, where), rao = self.wave
+        zeta = (amp[:, None, :] * np.cos(omega * t + phases)[None]).sum(axis=2)[state, where]  # per sea and seed: (B,)
         return zeta[:, None] * rao[None, :]
 
     def events(self, t: float) -> np.ndarray:

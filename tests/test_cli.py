@@ -880,7 +880,8 @@ def test_list_shows_registered_kinds():
     observers = kinds()["observers"]
     assert len(set(observers.values())) == len(observers)  # each kind its own line, even when classes are shared
     scenarios = kinds()["scenarios"]  # with the world keys their runs may set
-    assert scenarios["dp_supply"].endswith("Per run (world:, world.<key> sweeps): gnss_sigma, heading_sigma_deg.")
+    assert scenarios["dp_supply"].endswith("Per run (world:, world.<key> sweeps): gnss_sigma, heading_sigma_deg, "
+                                           "gm_time_constant, hs.")
     assert "estimate_offset_depth, estimate_offset_yaw_deg, depth_noise" in scenarios["rov_tracking"]
     assert scenarios["open_loop_asv"].endswith("Per run (world:, world.<key> sweeps): position_noise_scale.")
 

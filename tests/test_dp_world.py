@@ -137,7 +137,8 @@ def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_pe
     def components(rolloff, gamma=3.3):
         sc = DpScenario(name="w", horizon=10, waves={"n_components": 40, "w_max_factor": 3.0, "rao_rolloff": rolloff,
                                                      "gamma": gamma})
-        return DpWorld(sc, 5, np.arange(2)).wave[:2]
+        omega, amp = DpWorld(sc, 5, np.arange(2)).wave[:2]
+        return omega, amp[0]  # one sea state
 
     omega, flat = components(0.0)
     w_p = 2 * np.pi / 6.3
@@ -151,7 +152,7 @@ def test_wave_components_are_equal_bins_below_the_cutoff_rolled_off_above_the_pe
     np.testing.assert_allclose(dnv, component_amplitudes(omega, np.diff(edges), 2.0, 6.3, dnv_gamma(2.0, 6.3)))
     # amplitudes scale with Hs, down to a small sea; Hs = 0 is a calm sea with no wave motion
     small = DpWorld(DpScenario(name="w", horizon=10, waves={"hs": 0.5, "rao_rolloff": 0.0}), 5, np.arange(2))
-    np.testing.assert_allclose(small.wave[1], flat * 0.25, rtol=1e-12)
+    np.testing.assert_allclose(small.wave[1][0], flat * 0.25, rtol=1e-12)
     calm = DpWorld(DpScenario(name="w", horizon=10, waves={"hs": 0.0}), 5, np.arange(2))
     assert calm.wave is None and not calm.wave_motion(3.0).any()
 
@@ -264,8 +265,37 @@ def test_a_variants_world_settings_reach_its_own_runs():
     np.testing.assert_allclose(world.gm[:2] / world.gm[2:], [[15.0, 15.0, 2.0]] * 2)
 
 
+def test_a_runs_sea_state_and_gauss_markov_time_constant_are_its_own():
+    """Per-run ``hs`` and ``gm_time_constant`` (``world:``, ``world.<key>`` sweeps): a run at Hs 1 m sees half the
+    wave motion of one at the scenario's 2 m on the same seed (the same phases; with gamma fixed the amplitudes
+    scale with Hs), one at Hs 0 none; a run given the scenario's own values is the run without them, to the bit;
+    a run's 1/c is the world's it would have as the scenario's own (the same noise, to the bit)."""
+    from marinebench.experiments.runner import make_world
+
+    sets = ["seeds=1", "scenario.waves.gamma=3.3"]
+    exp, _ = load_experiment(CONFIG, sets)
+    plain = make_world(exp, np.array([0]), np.array([0]))
+    exp, _ = load_experiment(CONFIG, [*sets, "variants[npo].world={hs: 1, gm_time_constant: 100}"])
+    world = make_world(exp, np.array([0, 1, 1]), np.array([0, 0, 0]))  # npo at Hs 1; resetting at the own Hs 2
+    eta = world.wave_motion(37.0)
+    np.testing.assert_allclose(eta[0], eta[1] / 2, rtol=1e-12)
+    assert (eta[1] == plain.wave_motion(37.0)[0]).all() and (world.gm[1:] == plain.gm).all()
+    calm, _ = load_experiment(CONFIG, [*sets, "variants[npo].world={hs: 0}"])
+    assert not make_world(calm, np.array([0, 1]), np.array([0, 0])).wave_motion(37.0)[0].any()
+    short, _ = load_experiment(CONFIG, [*sets, "scenario.sensors.gm_time_constant=100"])
+    own = make_world(short, np.array([0]), np.array([0]))
+    for k in range(0, 2000, 20):  # 100 s of Gauss-Markov samples (ts 1 s)
+        own.begin_step(k, k * exp.scenario.dt, own.x0)
+        world.begin_step(k, k * exp.scenario.dt, world.x0)
+        assert (world.gm[0] == own.gm[0]).all() and (k == 0 or (world.gm[1] != own.gm[0]).any())  # 1/c 1100 s: other
+    with pytest.raises(ConfigError) as err:  # calm water has no sea state to change
+        load_checked(CONFIG, ["scenario.waves=null", "variants[npo].world={hs: 1}"])
+    assert str(err.value) == ("--set: variants.0.world.hs: this world has no waves (waves: null): give it a sea state, "
+                              "scenario.waves, whose hs a run may change")
+
+
 @pytest.mark.parametrize("world, key", [("{gnss_sigma: -1}", "gnss_sigma"), ("{gnss_sigma: 1, heading_sigma_deg: -0.3}",
-                                                                        "heading_sigma_deg")])
+                                                                        "heading_sigma_deg"), ("{hs: -1}", "hs")])
 def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
     """A per-run noise level below zero is refused like ``scenario.sensors.gnss_sigma: -1`` is (it would run: the
     noise is symmetric), naming where it came from and the key."""
@@ -277,7 +307,8 @@ def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
 
 @pytest.mark.parametrize("group, expected", [
     ("gnss_sigma=-1", "sweep.groups.dgnss.gnss_sigma: Input should be greater than or equal to 0"),
-    ("foo=1", "sweep.groups.dgnss: unknown per-run world keys ['foo'] (allowed: ['gnss_sigma', 'heading_sigma_deg'])"),
+    ("foo=1", ("sweep.groups.dgnss: unknown per-run world keys ['foo'] (allowed: ['gnss_sigma', 'heading_sigma_deg', "
+                "'gm_time_constant', 'hs'])")),
     ("gnss_sgima=1", "sweep.groups.dgnss: unknown per-run world keys ['gnss_sgima'] (did you mean gnss_sigma?)"),
 ])
 def test_a_sweep_groups_world_settings_are_checked_where_they_are_written(group, expected):
