@@ -334,6 +334,25 @@ def _fig3_trend(param: str, value: str, *, rho: bool = False) -> list[float]:
     return out
 
 
+SEA = "torben_fig3_sweep_npo+resetting_n9_world.hs=0..4_5seeds"
+
+
+@cache
+def _sea_state() -> list[float]:
+    """docs/torben.md, the sea state: J_tot of each observer at Hs 0 and 4 m, then J_resetting/J_NPO per seed (mean,
+    95 % Student-t interval) at 0 and 4 m, differential GNSS first."""
+    m = _metrics(SEA)
+    m = m[m.metric == "J_tot"]
+    at = {(g, h): m[(m.gnss == g) & (m.param_value == h)].pivot(index="seed", columns="sweep_variant", values="value")
+          for g in ("dgnss", "dualband") for h in (0.0, 4.0)}
+    means = [at[g, h][v].mean() for v in ("npo", "resetting") for g in ("dgnss", "dualband") for h in (0.0, 4.0)]
+    ratios = []
+    for g in ("dgnss", "dualband"):
+        for h in (0.0, 4.0):
+            ratios += mean_ci((at[g, h]["resetting"] / at[g, h]["npo"]).to_numpy())
+    return means + ratios
+
+
 def _cross_dp(signal: str, metric: str) -> list[float]:
     """A row of docs/cross.md's table: the six observers on Torben's sway impulse."""
     variants = ("npo", "resetting", "liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")
@@ -418,6 +437,16 @@ def _frontier_gain(k_star: tuple[float, float, float]) -> list[float]:
 
 
 QUOTES = [
+    Quote("docs/torben.md", "its J_tot moves from {} to {} (differential) and {} to {} (dual-band)\n  between 0 and 4 m. "
+          "The resetting observer's grows from {} to {} (differential) and from {} to {}\n  (dual-band)",
+          lambda: _sea_state()[:8]),
+    Quote("docs/torben.md", "interval) is {} [{}, {}] in calm water and {} [{}, {}] at 4 m with differential GNSS, {}\n  "
+          "[{}, {}] and {} [{}, {}] with dual-band", lambda: _sea_state()[8:]),
+    Quote("README.md", "From calm water to Hs 4 m the NPO's J_tot does not move ({} → {},\n  differential GNSS), while "
+          "the resetting observer's grows by {} % (differential) and {} % (dual-band)",
+          lambda: [*_sea_state()[:2], *(100 * (_sea_state()[i + 1] / _sea_state()[i] - 1) for i in (4, 6))]),
+    Quote("README.md", "shrinks from J ratio {} to {} (differential) and from {} to {} [{}, {}]",
+          lambda: [_sea_state()[8], _sea_state()[11], _sea_state()[14], *_sea_state()[17:]]),
     Quote("README.md", "Our Liu rows land on the paper's (ratios {}–{})", lambda: _table3()["liu"]),
     Quote("docs/bejarano.md", "(ratios ours/paper {}–{} over the twelve cells)", lambda: _table3()["liu"]),
     Quote("README.md", "far above the paper's (e_u {} vs 3.9e-6) and {}–{}× our Liu ε = 0.1's",
