@@ -59,7 +59,8 @@ class Variant(BaseModel):
     world: dict[str, float] = Field(
         default_factory=dict, description="per-run world parameters: position_noise_scale (open_loop_asv); gnss_sigma, "
         "heading_sigma_deg, gm_time_constant, hs (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
-        "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking)"
+        "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking); or any other numeric setting of the world by its "
+        "dotted path (e.g. waves.tp: 8), run in a world of its own"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
     scenarios: list[str] | None = Field(
@@ -264,13 +265,15 @@ class SweepParam(BaseModel):
 
     ``key`` is a field of the variant's observer (``k``, ``delta_p1``), a dotted path in the variant that
     starts with ``observer.`` or ``controller.`` (``observer.cdo.lmi_decay``, ``controller.yaw.alpha``), or
-    ``world.<key>``, a per-run world setting of the scenario (``world.gnss_sigma``, ``world.estimate_offset_depth``);
+    ``world.<key>``, a per-run world setting of the scenario (``world.gnss_sigma``, ``world.estimate_offset_depth``)
+    or any numeric setting of it by its dotted path (``world.waves.tp``, each point a world of its own);
     ``fixed`` keys read the same way."""
 
     model_config = STRICT
     key: str = Field(..., description="observer field (e.g. k, delta, eps_scale, delta_p1) or a dotted path in the "
                      "variant: observer.<...> or controller.<...> (e.g. controller.yaw.alpha, observer.cdo.lmi_decay), or "
-                     "world.<per-run key> (e.g. world.gnss_sigma, world.estimate_offset_yaw_deg)")
+                     "world.<per-run key> (e.g. world.gnss_sigma, world.estimate_offset_yaw_deg) or world.<dotted path of a "
+                     "numeric world setting> (e.g. world.waves.tp)")
     range: tuple[float, float] = Field(..., description="[low, high]: the first and last values swept")
     spacing: Literal["linear", "log"] = Field("linear", description="the points' spacing over range (log: both ends "
                                               "positive)")
@@ -327,7 +330,7 @@ class SweepSpec(BaseModel):
     params: dict[str, SweepParam] = Field(..., min_length=1, description="name -> sweepable parameter; the names are "
                                           "the arguments of marinebench sweep")
     groups: dict[str, dict[str, float]] = Field(
-        default_factory=lambda: {"default": {}}, description="named per-run world settings (e.g. GNSS models)"
+        default_factory=lambda: {"default": {}}, description="named world settings, as a variant's world: takes them (e.g. GNSS models)"
     )
     metric: str | None = Field(None, description="metric plotted against each parameter (default: the experiment's first)")
     metrics: list[str] | None = Field(

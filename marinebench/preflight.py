@@ -12,6 +12,7 @@ without running. Called after :func:`marinebench.loading.load_experiment` by
 
 from __future__ import annotations
 
+import difflib
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,7 +25,7 @@ from pydantic import ValidationError
 from marinebench.config import DP_SIGNALS, TRUTH_SIGNALS, Experiment, Variant
 from marinebench.controllers.spec import check_built as check_controller
 from marinebench.errors import ConfigError, ProtocolError
-from marinebench.keypaths import did_you_mean, near_misses
+from marinebench.keypaths import did_you_mean, keyed_message, near_misses
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import split_source
@@ -40,12 +41,12 @@ def preflight(exp: Experiment, file: Path, sweep_params: bool = True) -> None:
         for group, world in exp.sweep.groups.items():
             _check_world(swept, world, file, f"sweep.groups.{group}")
     if exp.scenarios is None:
-        _preflight_single(exp, file, "scenario", list(range(len(exp.variants))))
+        _preflight_worlds(exp, file, "scenario", list(range(len(exp.variants))))
     else:
         position = {v.name: i for i, v in enumerate(exp.variants)}
         for name in exp.scenarios:
             part = exp.part(name)
-            _preflight_single(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
+            _preflight_worlds(part, file, f"scenarios.{name}", [position[v.name] for v in part.variants])
     if exp.sweep is not None and sweep_params:  # after the variants: what is left wrong is the sweep's own
         from marinebench.experiments.sweep import sweep_experiment
 
@@ -90,10 +91,25 @@ def _numerics(file: Path, key: str, failure: str, custom_key: str | None = None)
         warnings.showwarning(w.message, w.category, w.filename, w.lineno)
 
 
-def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
+def _preflight_worlds(exp: Experiment, file: Path, key: str, positions: list[int]) -> None:
+    """Preflight of one scenario's variants in its own world (their settings, designs, signals), then in each world
+    their settings make (:func:`~marinebench.experiments.runner.world_batches`: designs on that world's vessel, the
+    step, the first step), named at the first such variant's ``world``."""
+    from marinebench.experiments.runner import world_batches
+
+    _preflight_single(exp, file, key, positions)
+    for settings, index in world_batches(exp):
+        if settings:
+            own = exp.model_copy(update={"scenario": exp.scenario.with_settings(settings),
+                                         "variants": [exp.variants[j] for j in index]})
+            _preflight_single(own, file, f"variants.{positions[index[0]]}.world", [positions[j] for j in index],
+                              signals=False)
+
+
+def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int], signals: bool = True) -> None:
     """Preflight of one scenario's variants (``key`` is where the scenario sits, ``positions`` the variants'
     indices in the file): each variant's controller or observer, the CDO designs, that each variant's world builds
-    (one seed), the metrics' signals, the step."""
+    (one seed), the step, and (``signals``) the metrics' and figures' signals."""
     from marinebench.errors import StiffnessError
     from marinebench.experiments.runner import make_world, plant_of
     from marinebench.sim.engine import check_step
@@ -106,8 +122,9 @@ def _preflight_single(exp: Experiment, file: Path, key: str, positions: list[int
     groups = [g for _, g in named]
     if exp.scenario.kind == "rov_tracking":
         _preflight_cdo(exp, file, key, positions)
-    _preflight_metrics(exp, file, groups)
-    _preflight_figures(exp, file, groups)
+    if signals:
+        _preflight_metrics(exp, file, groups)
+        _preflight_figures(exp, file, groups)
     # the world's numerics' warnings are shown only if it builds, passes the step check and starts finite
     with _numerics(file, key, "the world cannot be built from these values"):  # each variant's, one seed
         world = make_world(exp, np.arange(len(exp.variants)), np.zeros(len(exp.variants), dtype=int))
@@ -147,18 +164,26 @@ def _fastest(exp: Experiment, named: list, world: Any) -> str:
 
 
 def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
-    """Per-run world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, values within
-    the bounds of its own fields (e.g. no negative noise level)."""
-    unknown = sorted(set(world) - set(allowed := list(scenario.per_run_defaults())))
+    """A run's world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, or numeric
+    settings of the world by their dotted paths (a world of their own, :meth:`~marinebench.scenario.ScenarioBase.
+    with_settings`); values within the bounds of the world's own fields (e.g. no negative noise level)."""
+    allowed = list(scenario.per_run_defaults())
+    settings = scenario.world_settings(world)
+    unknown = sorted(k for k in settings if k in ("horizon", "dt") or scenario.setting(k) is None)
     if unknown:
-        near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in near_misses(u, allowed))))
-        takes = near or (f" (allowed: {allowed})" if allowed else f" (the {scenario.kind} world takes none)")
-        raise ConfigError(file, key, f"unknown per-run world keys {unknown}{takes}")
+        paths = [path for path in scenario.setting_paths() if path not in ("horizon", "dt")]
+        near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in [
+            *near_misses(u, allowed), *difflib.get_close_matches(u, paths, 3, 0.8)])))
+        takes = near or (f" (per run: {allowed}, or a numeric world setting by its dotted path, e.g. sensors.<key>; "
+                         "horizon and dt are every run's)")
+        raise ConfigError(file, key, f"unknown world keys {unknown}{takes}")
     try:
-        scenario.check_per_run(world)
+        scenario.check_world(world)
     except ValidationError as exc:
         err = exc.errors()[0]
-        raise ConfigError(file, f"{key}.{err['loc'][0]}", err["msg"].removeprefix("Value error, ")) from None
+        keys, msg = keyed_message(err["msg"].removeprefix("Value error, "))  # a check across fields names its key
+        at = ".".join(map(str, err["loc"])) or (keys[0] if keys else next(iter(settings)))
+        raise ConfigError(file, f"{key}.{at}", msg if keys and not err["loc"] else err["msg"].removeprefix("Value error, ")) from None
 
 
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import zlib
 from collections.abc import Collection
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import BaseModel, Field, ValidationInfo, field_validator, model_validator
@@ -120,6 +120,56 @@ class ScenarioBase(BaseModel):
     def check_per_run(self, world: dict[str, float]) -> None:
         """A variant's per-run world settings (their keys are checked against :meth:`per_run_defaults`): raises
         pydantic's ValidationError for a value the world's own field would refuse. Nothing to check by default."""
+
+    def setting(self, path: str) -> float | None:
+        """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``), or
+        None where there is none (no such key, a text, a list, a switch, a section set to null)."""
+        node: Any = self.model_dump()
+        for part in path.split("."):
+            node = node.get(part) if isinstance(node, dict) else None
+        return node if isinstance(node, int | float) and not isinstance(node, bool) else None
+
+    def setting_paths(self) -> list[str]:
+        """Every dotted path :meth:`setting` reads a number at (for error hints)."""
+        def walk(node: Any, prefix: str) -> list[str]:
+            if isinstance(node, dict):
+                return [p for key, value in node.items() for p in walk(value, f"{prefix}{key}.")]
+            return [prefix[:-1]] if isinstance(node, int | float) and not isinstance(node, bool) else []
+        return walk(self.model_dump(), "")
+
+    def world_settings(self, world: dict[str, float]) -> dict[str, float]:
+        """The keys of a run's ``world:`` that are not per-run keys: numeric settings of the world by their dotted
+        paths, for which the runner builds the run a world of its own (:meth:`with_settings`)."""
+        per_run = self.per_run_defaults()
+        return {key: value for key, value in world.items() if key not in per_run}
+
+    def check_world(self, world: dict[str, float]) -> None:
+        """A run's world settings: its per-run keys (:meth:`check_per_run`) and the world's settings by their paths
+        (:meth:`with_settings`), bounded as the file's own values are."""
+        settings = self.world_settings(world)
+        self.check_per_run({key: value for key, value in world.items() if key not in settings})
+        self.with_settings(settings)
+
+    def with_settings(self, settings: dict[str, float]) -> ScenarioBase:
+        """This world with ``settings`` (dotted paths to numeric settings, :meth:`setting`) written in, checked as
+        the file's own values are: raises pydantic's ValidationError, or ValueError for a path to no numeric
+        setting or to the time axis, which the runs of one experiment share."""
+        if not settings:
+            return self
+        doc = self.model_dump()
+        for key, value in settings.items():
+            if key in ("horizon", "dt"):
+                raise ValueError(f"{key}: the runs of a world share its time axis: set the scenario's {key} instead")
+            own = self.setting(key)
+            if own is None:
+                raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
+                                 " nor a numeric setting of it by its dotted path (e.g. sensors.<key>)")
+            *path, last = key.split(".")
+            node = doc
+            for part in path:
+                node = node[part]
+            node[last] = int(value) if isinstance(own, int) and float(value).is_integer() else value
+        return type(self).model_validate(doc)
 
     def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """What this world's own settings assume beyond its paper, one phrase each, for the manifest (which names the

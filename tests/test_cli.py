@@ -881,9 +881,10 @@ def test_list_shows_registered_kinds():
     assert len(set(observers.values())) == len(observers)  # each kind its own line, even when classes are shared
     scenarios = kinds()["scenarios"]  # with the world keys their runs may set
     assert scenarios["dp_supply"].endswith("Per run (world:, world.<key> sweeps): gnss_sigma, heading_sigma_deg, "
-                                           "gm_time_constant, hs.")
+                                           "gm_time_constant, hs; any other numeric setting by its dotted path "
+                                           "(waves.tp), in a world of its own.")
     assert "estimate_offset_depth, estimate_offset_yaw_deg, depth_noise" in scenarios["rov_tracking"]
-    assert scenarios["open_loop_asv"].endswith("Per run (world:, world.<key> sweeps): position_noise_scale.")
+    assert "Per run (world:, world.<key> sweeps): position_noise_scale; any other" in scenarios["open_loop_asv"]
 
 
 def test_list_takes_groups():

@@ -155,9 +155,10 @@ def test_bad_world_sweep_keys_are_config_errors():
             sweep_experiment(base, [param], None, 2, 10.0, config)
 
     refused(OBSERVERS, ["sweep.params.theta.key=world.gnss_sigma"], "theta",
-            r"sweep\.params\.theta\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: "
+            r"sweep\.params\.theta\.key: 'world\.gnss_sigma' is neither a per-run world key \(its per-run keys: "
             r"estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, gyro_noise_dps, damping_scale, "
-            r"buoyancy_scale\)")
+            r"buoyancy_scale\) nor a numeric setting of the world by its dotted path \(e\.g\. world\.sensors\.<key>; "
+            r"horizon and dt are every run's\)")
     refused(OBSERVERS, ["sweep.params.theta.key=world.depth_noise", "sweep.params.theta.range=[-0.001, 0.001]",
                         "sweep.params.theta.spacing=linear", "sweep.params.theta.probes=[]"], "theta",
             r"sweep\.params\.theta: theta=-0\.001: Input should be greater than or equal to 0")
@@ -167,7 +168,10 @@ def test_bad_world_sweep_keys_are_config_errors():
             r"would not differ in it: sweep it in one group \(--groups NAME\)")
     table4 = ROOT / "configs" / "bejarano_table4.yaml"
     refused(table4, ["sweep.params.k_omega.key=world.gnss_sigma"], "k_omega",
-            r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is not a per-run world key \(its per-run keys: position_noise_scale\)")
+            r"sweep\.params\.k_omega\.key: 'world\.gnss_sigma' is neither a per-run world key \(its per-run keys: "
+            r"position_noise_scale\) nor a numeric setting")
+    refused(table4, ["sweep.params.k_omega.key=world.horizon"], "k_omega",  # a setting, but every run's
+            r"'world\.horizon' is neither a per-run world key .* horizon and dt are every run's\)")
 
 
 def test_bad_sweep_and_observer_settings_are_config_errors():
@@ -216,7 +220,7 @@ def test_sweep_applies_a_profile_and_names_it_in_the_folder(tmp_path):
 
 
 @pytest.mark.parametrize("sets, expected", [
-    (["sweep.params.theta.key=world.nope"], "sweep.params.theta.key: 'world.nope' is not a per-run world key"),
+    (["sweep.params.theta.key=world.nope"], "sweep.params.theta.key: 'world.nope' is neither a per-run world key"),
     (["sweep.params.theta.key=observer.cdo_theta"], ("sweep.params.theta.key: 'observer.cdo_theta' is not a setting of "
                                                      "variant 'cdo'")),
     (["sweep.params.offset_yaw.key=world.yaw_noise_deg", "sweep.params.offset_yaw.range=[-1, 1]",

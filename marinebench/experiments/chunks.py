@@ -67,17 +67,18 @@ def run_chunked(exp: Experiment, target: Path, chunk_size: int, progress=None, o
     atomic_write_text(partial / "key", key)
     chunks = chunks_of(exp, chunk_size)
     paths = [partial / CHUNK_FILE.format(c) for c in range(len(chunks))]
-    n_steps = steps(exp)
+    chunk_steps = [steps(exp.model_copy(update={"variants": chunk})) for chunk in chunks]  # more where worlds differ
     if on_start is not None:
-        on_start(n_steps * len(chunks))
+        on_start(sum(chunk_steps))
     kept = {c: frame for c, path in enumerate(paths) if (frame := _kept_chunk(path, chunks[c])) is not None}
     pending = [c for c in range(len(chunks)) if c not in kept]
     if progress is not None:
-        progress(n_steps * (len(chunks) - len(pending)))
+        progress(sum(chunk_steps[c] for c in kept))
     if pool is None:
         finished = ((c, run_chunk(exp, chunks[c], progress)) for c in pending)
     else:
-        finished = pool.results(run_chunk, {c: (exp, chunks[c]) for c in pending}, progress, n_steps, key[:12])
+        finished = pool.results(run_chunk, {c: (exp, chunks[c]) for c in pending}, progress,
+                                {c: chunk_steps[c] for c in pending}, key[:12])
     wall = 0.0
     try:
         for c, (csv, w) in finished:

@@ -108,7 +108,7 @@ class LocalPool:
     def describe(self) -> str:
         return f"{self.workers} local worker process(es)"
 
-    def results(self, fn: Callable, tasks: dict[int, tuple], progress=None, steps_per_task: int = 0,
+    def results(self, fn: Callable, tasks: dict[int, tuple], progress=None, task_steps: dict[int, int] | None = None,
                 name: str = "") -> Iterator[tuple[int, object]]:
         """``(task, fn(*args))`` as the tasks finish; :class:`ChunkFailed` for the first that raises."""
         futures = {self.pool.submit(_in_worker, fn, args): c for c, args in tasks.items()}
@@ -166,7 +166,7 @@ class DaskPool:
         return (f"dask local cluster, {n} worker process(es)" if self.address == "local"
                 else f"dask scheduler {self.address}, {n} worker(s)")
 
-    def results(self, fn: Callable, tasks: dict[int, tuple], progress=None, steps_per_task: int = 0,
+    def results(self, fn: Callable, tasks: dict[int, tuple], progress=None, task_steps: dict[int, int] | None = None,
                 name: str = "task") -> Iterator[tuple[int, object]]:
         from distributed import as_completed
 
@@ -181,7 +181,7 @@ class DaskPool:
                 self.client.cancel(list(futures))
                 raise ChunkFailed(futures[future], exc) from None
             if progress is not None:
-                progress(steps_per_task)
+                progress((task_steps or {}).get(futures[future], 0))
             yield futures[future], value
 
 

@@ -226,13 +226,26 @@ def _closed_loop_design(exp: Experiment, v) -> dict:
 
 
 def steps(exp: Experiment) -> int:
-    """Time steps of an experiment's simulations, over its scenarios: what ``run``'s progress callback counts."""
-    return sum(round(p.scenario.horizon / p.scenario.dt) for p in map(exp.part, exp.scenario_names))
+    """Time steps of an experiment's simulations, over its scenarios and the worlds its variants' settings make
+    (:func:`world_batches`): what ``run``'s progress callback counts."""
+    return sum(round(p.scenario.horizon / p.scenario.dt) * len(world_batches(p)) for p in map(exp.part, exp.scenario_names))
 
 
 def run_steps(exp: Experiment) -> int:
     """Runs x time steps over the experiment's scenarios (each scenario with its own variants): its rough cost."""
-    return sum(len(p.variants) * p.seeds * steps(p) for p in map(exp.part, exp.scenario_names))
+    return sum(len(p.variants) * p.seeds * round(p.scenario.horizon / p.scenario.dt) for p in map(exp.part, exp.scenario_names))
+
+
+def world_batches(exp: Experiment) -> list[tuple[dict[str, float], list[int]]]:
+    """A single-scenario experiment's variants (their indices) by the world they run in, in the order of their first
+    variant: the variants whose ``world:`` sets per-run keys only share the scenario's world and one batch; those
+    that set numeric settings of the world by their dotted paths (``waves.tp``) run, per distinct set of them, in a
+    world with those settings, a batch of its own (:meth:`~marinebench.scenario.ScenarioBase.world_settings`)."""
+    batches: dict[str, tuple[dict[str, float], list[int]]] = {}
+    for i, v in enumerate(exp.variants):
+        settings = exp.scenario.world_settings(v.world)
+        batches.setdefault(repr(sorted(settings.items())), (settings, []))[1].append(i)
+    return list(batches.values())
 
 
 def run(
@@ -296,7 +309,45 @@ def _run(exp: Experiment, progress: Callable[[int], None] | None, on_start: Call
     )
 
 
-def _run_single(
+def _run_single(exp: Experiment, progress: Callable[[int], None] | None, on_start: Callable[[int], None] | None,
+                traces: bool) -> RunResult:
+    """One scenario's variants: one batch in the scenario's world, or one per world their settings make
+    (:func:`world_batches`), merged as if run together (run, trace and variant indices of the whole experiment)."""
+    batches = world_batches(exp)
+    if len(batches) == 1 and not batches[0][0]:
+        return _run_batch(exp, progress, on_start, traces)
+    if on_start is not None:
+        on_start(steps(exp))
+    done = [(np.array(index), _run_batch(exp.model_copy(update={
+        "scenario": exp.scenario.with_settings(settings), "variants": [exp.variants[i] for i in index]}),
+        progress, None, traces)) for settings, index in batches]
+    return _merged(exp, done)
+
+
+def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]]) -> RunResult:
+    """The results of one scenario's world batches (``(variant indices, result)`` each) as one result: runs in batch
+    order, variant indices the experiment's, the traced runs' traces side by side (NaN where a batch has no trace
+    of a signal)."""
+    offsets = np.cumsum([0] + [len(r.run_variant) for _, r in done])
+    t = next((r.traces[0] for _, r in done if r.traces[0].size), np.zeros(0))
+    traces = [t, {}, {}]
+    for k in (1, 2):  # truth, estimates: (T, R) per signal
+        names = sorted({name for _, r in done for name in r.traces[k]})
+        traces[k] = {name: np.concatenate([r.traces[k].get(name, np.full((t.size, r.traced.size), np.nan))
+                                           for _, r in done], axis=1) for name in names}
+    designs: dict[str, dict] = {}
+    for _, r in done:
+        for key, design in r.designs.items():
+            designs.setdefault(key, design)
+    metrics = pd.concat([r.metrics for _, r in done], ignore_index=True)
+    return RunResult(exp, metrics, summarise(metrics), tuple(traces),
+                     np.concatenate([index[r.run_variant] for index, r in done]),
+                     np.concatenate([r.run_seed for _, r in done]), sum(r.wall_time for _, r in done),
+                     max(r.max_rate for _, r in done), designs,
+                     traced=np.concatenate([r.traced + offset for (_, r), offset in zip(done, offsets)]))
+
+
+def _run_batch(
     exp: Experiment,
     progress: Callable[[int], None] | None,
     on_start: Callable[[int], None] | None,
@@ -309,7 +360,7 @@ def _run_single(
     world = make_world(exp, run_variant, run_seed)
     groups = build_groups(exp, run_variant, plant_of(sc))
     rate = check_step(groups, sc.dt, exp.engine.stiffness_limit if exp.engine.check_step else np.inf, world)
-    n_steps = steps(exp)
+    n_steps = round(sc.horizon / sc.dt)
     recorders = _recorders(exp, run_variant, run_seed, n_steps)
     truth0 = world.truth(0.0, world.x0)
     trace_signals = sorted({s for g in groups for s in g.observer.signals} & set(truth0))  # estimated and true

@@ -2,7 +2,7 @@
 
 A sweep parameter's ``key`` (``sweep.params.<name>.key`` in an experiment YAML) is an observer field (``k`` is
 ``observer.k``) or a dotted path under ``observer.``, ``controller.`` or ``world.`` (a per-run world key, e.g.
-``world.gnss_sigma``). The sweep builds each point by writing the value at that path of the variant's settings
+``world.gnss_sigma``, or a numeric setting of the world by its dotted path, ``world.waves.tp``). The sweep builds each point by writing the value at that path of the variant's settings
 (:func:`put_setting`), and the figures and the grid's claims read the variant's own value back (:func:`tuning`).
 """
 
@@ -18,10 +18,12 @@ MISSING: Any = object()
 
 
 def setting_path(key: str) -> list[str]:
-    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…``/``world.…``
-    as given."""
+    """A sweep key as a path in the variant: ``k`` is ``observer.k``; ``observer.…``/``controller.…`` as given;
+    ``world.<key>`` one key of the variant's flat ``world:`` mapping, dots and all (``world.waves.tp``)."""
     parts = key.split(".")
-    return parts if parts[0] in ("observer", "controller", "world") else ["observer", *parts]
+    if parts[0] == "world":
+        return ["world", key.split(".", 1)[1]]
+    return parts if parts[0] in ("observer", "controller") else ["observer", *parts]
 
 
 def setting_at(doc: dict, path: list[str]) -> Any:
@@ -65,8 +67,8 @@ def tuning(exp: Experiment, param: str, variant: str | None = None) -> float | N
 def _own_setting(base, scenario, path: list[str]) -> Any:
     """The variant's own value at a setting ``path`` (a per-run world key's scenario default, the scenario's CDO/EO
     setting, Table II's controller gain when the variant leaves it unset)."""
-    if path[0] == "world":
-        return base.world.get(path[1], scenario.per_run_defaults().get(path[1]))
+    if path[0] == "world":  # a per-run key's default, or the world's own setting at that path
+        return base.world.get(path[1], scenario.per_run_defaults().get(path[1], scenario.setting(path[1])))
     value = setting_at(base.model_dump(include={"observer", "controller"}, exclude_none=True), path)
     if value is None and path[0] == "observer" and len(path) == 3 and path[1] in ("cdo", "eo"):
         value = getattr(base.observer.resolve(scenario)[path[1] == "eo"], path[2], None)  # the scenario's CDO/EO

@@ -1,0 +1,93 @@
+"""A variant's ``world:`` (a sweep group's, a sweep's ``world.<key>``) may set any numeric setting of its world by its
+dotted path (``waves.tp``, ``sensors.ts``), beside the per-run keys the world batches: such runs get a world of their
+own, simulated as a batch apart (``runner.world_batches``) and merged as if run together."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from marinebench.cli import app
+from marinebench.errors import ConfigError
+from marinebench.experiments.runner import run, steps, world_batches
+from marinebench.loading import load_checked
+from marinebench.results.outputs import METRICS_FLOAT
+
+from .conftest import ROOT
+
+CONFIG = ROOT / "configs" / "torben_fig1.yaml"
+SHORT = ["scenario.horizon=120", "seeds=2"]
+
+
+def _load(*sets):
+    return load_checked(CONFIG, [*SHORT, *sets])[0]
+
+
+def _values(result, variant):
+    m = result.metrics
+    return m[m.variant == variant].set_index(["seed", "signal", "metric"])["value"].sort_index()
+
+
+def test_a_variant_with_a_world_setting_runs_where_the_scenario_has_it_to_the_bit():
+    """npo given Tp 8 s gives, to the bit, the NPO of an experiment whose scenario has Tp 8 s, while resetting, beside
+    it in the scenario's world, gives what it gives without that variant's setting; the setting acts (npo moves)."""
+    mixed = run(_load("variants[npo].world={waves.tp: 8, gnss_sigma: 0.5}"), traces=False)
+    own = run(_load("scenario.waves.tp=8", "variants[npo].world={gnss_sigma: 0.5}"), traces=False)
+    plain = run(_load("variants[npo].world={gnss_sigma: 0.5}"), traces=False)
+    pd.testing.assert_series_equal(_values(mixed, "npo"), _values(own, "npo"))
+    pd.testing.assert_series_equal(_values(mixed, "resetting"), _values(plain, "resetting"))
+    assert (_values(mixed, "npo") != _values(plain, "npo")).any()
+    assert list(mixed.run_variant) == [0, 0, 1, 1] and list(mixed.run_seed) == [0, 1, 0, 1]
+
+
+def test_the_worlds_batches_and_their_traces_merge_as_one_run():
+    """Two worlds, two batches, twice the steps of one; the figures' traces hold each variant's seed 0 from its own
+    world, as its own run has them."""
+    exp = _load("variants[resetting].world={sensors.ts: 2}")
+    assert world_batches(exp) == [({}, [0]), ({"sensors.ts": 2.0}, [1])]
+    assert steps(exp) == 2 * steps(_load())
+    mixed = run(exp).trace_frame()
+    alone = run(_load("scenario.sensors.ts=2")).trace_frame()
+    pick = [(f[f.variant == "resetting"].drop(columns="scenario").reset_index(drop=True)) for f in (mixed, alone)]
+    pd.testing.assert_frame_equal(*pick)
+    assert set(mixed.variant) == {"npo", "resetting"} and set(mixed.seed) == {0}
+
+
+@pytest.mark.parametrize("world, expected", [
+    ("{waves.tp: -1}", "variants.0.world.waves.tp: Input should be greater than 0"),
+    ("{sensors.ts: 1.01}", "variants.0.world.sensors.ts: 1.01 s must be a multiple of dt=0.05 s (one step or more)"),
+    ("{waves.n_components: 20.5}", ("variants.0.world.waves.n_components: Input should be a valid integer, got a number "
+                                   "with a fractional part")),
+    ("{waves.tpp: 3}", "variants.0.world: unknown world keys ['waves.tpp'] (did you mean waves.tp?)"),
+    ("{horizon: 10}", ("variants.0.world: unknown world keys ['horizon'] (per run: ['gnss_sigma', 'heading_sigma_deg', "
+                      "'gm_time_constant', 'hs'], or a numeric world setting by its dotted path, e.g. sensors.<key>; "
+                      "horizon and dt are every run's)")),
+    ("{waves.rao: 1}", "variants.0.world: unknown world keys ['waves.rao'] (per run: "),  # a list, not a number
+    # a world that builds but cannot run: found at validation, in the variant's own world
+    ("{waves.gamma: 1e300}", ("variants.0.world: the world cannot be run from these values (not finite at t = 0: its "
+                             "measurement)")),
+])
+def test_a_world_setting_is_checked_as_the_files_own(world, expected):
+    with pytest.raises(ConfigError) as err:
+        _load(f"variants[npo].world={world}")
+    assert str(err.value).startswith(f"--set: {expected}")
+
+
+def test_a_sweep_of_a_world_setting_runs_each_point_in_its_world(tmp_path):
+    """`sweep world.waves.tp=5..8`: a point's runs are those of the scenario with that Tp (to the bit); the variant's
+    own value, the one the figure marks, is the scenario's 6.3 s."""
+    res = CliRunner().invoke(app, ["sweep", "--config", str(CONFIG), "world.waves.tp=5..8", "--n", "2", "--horizon",
+                                   "120", "--seeds", "2", "--out", str(tmp_path), "--quiet"])
+    assert res.exit_code == 0, res.output
+    (folder,) = tmp_path.iterdir()
+    m = pd.read_csv(folder / "metrics.csv")
+    at8 = m[(m.param_value == 8.0) & (m.metric == "J_tot")].set_index("seed")["value"].sort_index()
+    own = run(_load("scenario.waves.tp=8"), traces=False).metrics
+    want = own[(own.variant == "resetting") & (own.metric == "J_tot")].set_index("seed")["value"].sort_index()
+    np.testing.assert_array_equal(at8.to_numpy(), [float(METRICS_FLOAT % v) for v in want])  # as metrics.csv writes it
+    assert m[m.metric == "J_tot"].groupby("param_value")["value"].mean().nunique() == 2
+    from marinebench.experiments.settings import tuning
+    from marinebench.loading import load_experiment
+
+    swept, _ = load_experiment(folder / "config.resolved.yaml")
+    assert tuning(swept, "tp") == pytest.approx(6.3)
