@@ -353,6 +353,25 @@ def _sea_state() -> list[float]:
     return means + ratios
 
 
+PEAK = "torben_fig3_sweep_npo+resetting_n7_world.waves.tp=4..10_5seeds"
+
+
+@cache
+def _peak_period() -> list[float]:
+    """docs/torben.md, the peak period: the NPO's J_tot range (differential), J_resetting/J_NPO's range from Tp 6 s up
+    (differential), then its mean and interval at 5 s (differential) and at 4 s (differential, dual-band)."""
+    m = _metrics(PEAK)
+    m = m[m.metric == "J_tot"]
+
+    def ratio(gnss: str, tp: float) -> tuple[float, float, float]:
+        at = m[(m.gnss == gnss) & (m.param_value == tp)].pivot(index="seed", columns="sweep_variant", values="value")
+        return mean_ci((at["resetting"] / at["npo"]).to_numpy())
+
+    npo = m[(m.gnss == "dgnss") & (m.sweep_variant == "npo")].groupby("param_value")["value"].mean()
+    long = [ratio("dgnss", tp)[0] for tp in (6.0, 7.0, 8.0, 9.0, 10.0)]
+    return [npo.min(), npo.max(), min(long), max(long), *ratio("dgnss", 5.0), *ratio("dgnss", 4.0), *ratio("dualband", 4.0)]
+
+
 def _cross_dp(signal: str, metric: str) -> list[float]:
     """A row of docs/cross.md's table: the six observers on Torben's sway impulse."""
     variants = ("npo", "resetting", "liu_eps0.2", "liu_eps0.1", "proposed_d1.2", "proposed_d2.2")
@@ -447,6 +466,10 @@ QUOTES = [
           lambda: [*_sea_state()[:2], *(100 * (_sea_state()[i + 1] / _sea_state()[i] - 1) for i in (4, 6))]),
     Quote("README.md", "shrinks from J ratio {} to {} (differential) and from {} to {} [{}, {}]",
           lambda: [_sea_state()[8], _sea_state()[11], _sea_state()[14], *_sea_state()[17:]]),
+    Quote("docs/torben.md", "The NPO's J_tot stays within\n  {}–{} (differential); J_resetting/J_NPO is {}–{} (differential) "
+          "from Tp 6 s up, {} [{}, {}]\n  at 5 s", lambda: _peak_period()[:7]),
+    Quote("docs/torben.md", "advantage: {} [{}, {}] differential, {} [{}, {}] dual-band.", lambda: _peak_period()[7:]),
+    Quote("README.md", "the resetting observer's J_tot is {}× the NPO's (differential)", lambda: _peak_period()[7:8]),
     Quote("README.md", "Our Liu rows land on the paper's (ratios {}–{})", lambda: _table3()["liu"]),
     Quote("docs/bejarano.md", "(ratios ours/paper {}–{} over the twelve cells)", lambda: _table3()["liu"]),
     Quote("README.md", "far above the paper's (e_u {} vs 3.9e-6) and {}–{}× our Liu ε = 0.1's",
