@@ -181,9 +181,12 @@ def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -
         scenario.check_world(world)
     except ValidationError as exc:
         err = exc.errors()[0]
-        keys, msg = keyed_message(err["msg"].removeprefix("Value error, "))  # a check across fields names its key
-        at = ".".join(map(str, err["loc"])) or (keys[0] if keys else next(iter(settings)))
-        raise ConfigError(file, f"{key}.{at}", msg if keys and not err["loc"] else err["msg"].removeprefix("Value error, ")) from None
+        msg = err["msg"].removeprefix("Value error, ")
+        at = ".".join(map(str, err["loc"]))
+        if not at:  # a check across a world's fields names its key in its message ("sensors.ts: ...")
+            keys, rest = keyed_message(msg)
+            at, msg = (keys[0], rest) if keys else (next(iter(world)), msg)
+        raise ConfigError(file, f"{key}.{at}", msg) from None
 
 
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:
