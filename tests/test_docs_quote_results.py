@@ -469,7 +469,7 @@ QUOTES = [
     Quote("docs/torben.md", "The NPO's J_tot stays within\n  {}–{} (differential); J_resetting/J_NPO is {}–{} (differential) "
           "from Tp 6 s up, {} [{}, {}]\n  at 5 s", lambda: _peak_period()[:7]),
     Quote("docs/torben.md", "advantage: {} [{}, {}] differential, {} [{}, {}] dual-band.", lambda: _peak_period()[7:]),
-    Quote("README.md", "the resetting observer's J_tot is {}× the NPO's (differential)", lambda: _peak_period()[7:8]),
+    Quote("README.md", "the resetting observer's J_tot is {}× [{}, {}] the NPO's", lambda: _peak_period()[7:10]),
     Quote("README.md", "Our Liu rows land on the paper's (ratios {}–{})", lambda: _table3()["liu"]),
     Quote("docs/bejarano.md", "(ratios ours/paper {}–{} over the twelve cells)", lambda: _table3()["liu"]),
     Quote("README.md", "far above the paper's (e_u {} vs 3.9e-6) and {}–{}× our Liu ε = 0.1's",
