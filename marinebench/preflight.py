@@ -169,13 +169,12 @@ def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -
     with_settings`); values within the bounds of the world's own fields (e.g. no negative noise level)."""
     allowed = list(scenario.per_run_defaults())
     settings = scenario.world_settings(world)
-    unknown = sorted(k for k in settings if k in ("horizon", "dt") or scenario.setting(k) is None)
+    unknown = sorted(k for k in settings if scenario.setting(k) is None)
     if unknown:
-        paths = [path for path in scenario.setting_paths() if path not in ("horizon", "dt")]
         near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in [
-            *near_misses(u, allowed), *difflib.get_close_matches(u, paths, 3, 0.8)])))
+            *near_misses(u, allowed), *difflib.get_close_matches(u, scenario.setting_paths(), 3, 0.8)])))
         takes = near or (f" (per run: {allowed}, or a numeric world setting by its dotted path, e.g. sensors.<key>; "
-                         "horizon and dt are every run's)")
+                         f"{' and '.join(scenario.SHARED)} are every run's)")
         raise ConfigError(file, key, f"unknown world keys {unknown}{takes}")
     try:
         scenario.check_world(world)

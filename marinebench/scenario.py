@@ -121,9 +121,15 @@ class ScenarioBase(BaseModel):
         """A variant's per-run world settings (their keys are checked against :meth:`per_run_defaults`): raises
         pydantic's ValidationError for a value the world's own field would refuse. Nothing to check by default."""
 
+    #: Settings every run of an experiment's world shares, which no run may set for itself: the time axis.
+    SHARED: ClassVar[tuple[str, ...]] = ("horizon", "dt")
+
     def setting(self, path: str) -> float | None:
-        """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``), or
-        None where there is none (no such key, a text, a list, a switch, a section set to null)."""
+        """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``) that a
+        run may set for itself, or None where there is none (no such key, a text, a list, a switch, a section set to
+        null, a :data:`SHARED` setting)."""
+        if path in self.SHARED:
+            return None
         node: Any = self.model_dump()
         for part in path.split("."):
             node = node.get(part) if isinstance(node, dict) else None
@@ -135,7 +141,7 @@ class ScenarioBase(BaseModel):
             if isinstance(node, dict):
                 return [p for key, value in node.items() for p in walk(value, f"{prefix}{key}.")]
             return [prefix[:-1]] if isinstance(node, int | float) and not isinstance(node, bool) else []
-        return walk(self.model_dump(), "")
+        return [path for path in walk(self.model_dump(), "") if path not in self.SHARED]
 
     def world_settings(self, world: dict[str, float]) -> dict[str, float]:
         """The keys of a run's ``world:`` that are not per-run keys: numeric settings of the world by their dotted
@@ -152,18 +158,17 @@ class ScenarioBase(BaseModel):
 
     def with_settings(self, settings: dict[str, float]) -> ScenarioBase:
         """This world with ``settings`` (dotted paths to numeric settings, :meth:`setting`) written in, checked as
-        the file's own values are: raises pydantic's ValidationError, or ValueError for a path to no numeric
-        setting or to the time axis, which the runs of one experiment share."""
+        the file's own values are: raises pydantic's ValidationError, or ValueError for a path to no numeric setting
+        a run may set."""
         if not settings:
             return self
         doc = self.model_dump()
         for key, value in settings.items():
-            if key in ("horizon", "dt"):
-                raise ValueError(f"{key}: the runs of a world share its time axis: set the scenario's {key} instead")
             own = self.setting(key)
             if own is None:
                 raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
-                                 " nor a numeric setting of it by its dotted path (e.g. sensors.<key>)")
+                                 f" nor a numeric setting of it by its dotted path (e.g. sensors.<key>; "
+                                 f"{' and '.join(self.SHARED)} are every run's)")
             *path, last = key.split(".")
             node = doc
             for part in path:

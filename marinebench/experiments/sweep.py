@@ -308,10 +308,11 @@ def _check_key(settings: dict, key: str, variant: str, scenario: Any, groups: di
     several ``groups`` are swept."""
     if key.startswith("world."):
         name, own = key.removeprefix("world."), scenario.per_run_defaults()
-        if name not in own and (name in ("horizon", "dt") or scenario.setting(name) is None):
+        if name not in own and scenario.setting(name) is None:
             takes = f"its per-run keys: {', '.join(own)}" if own else f"the {scenario.kind} world takes none"
             raise ConfigError(file, where, f"'{key}' is neither a per-run world key ({takes}) nor a numeric setting of "
-                              "the world by its dotted path (e.g. world.sensors.<key>; horizon and dt are every run's)")
+                              f"the world by its dotted path (e.g. world.sensors.<key>; {' and '.join(scenario.SHARED)} "
+                              "are every run's)")
         clash = [g for g, world in groups.items() if name in world]
         if clash and len(groups) > 1:
             raise ConfigError(file, where, f"'{key}' is also set by world group(s) {clash}, which would not differ in it: "
