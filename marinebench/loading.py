@@ -170,7 +170,7 @@ def _child(node: Any, part: str | tuple[str], key: str) -> int | str:
             raise ConfigError("--set", key, f"'[{part[0]}]' selects from a list, found {type(node).__name__}")
         match = [j for j, item in enumerate(node) if isinstance(item, dict) and item.get("name") == part[0]]
         if not match:
-            names = [item["name"] for item in node if isinstance(item, dict) and isinstance(item.get("name"), str)]
+            names = _item_names(node)
             raise ConfigError("--set", key, f"no item named '{part[0]}'" + (f" (have: {', '.join(names)})" if names else ""))
         return match[0]
     if isinstance(node, list):
@@ -182,10 +182,15 @@ def _child(node: Any, part: str | tuple[str], key: str) -> int | str:
     raise ConfigError("--set", key, f"cannot descend into a {type(node).__name__}")
 
 
+def _item_names(node: list) -> list[str]:
+    """The names of a list's named items (variants, metrics), in order."""
+    return [item["name"] for item in node if isinstance(item, dict) and isinstance(item.get("name"), str)]
+
+
 def _by_name(node: list, part: str, key: str) -> str:
     """The hint for a list item named as a mapping's key (``variants.rise``, or ``variants.proposed_d1.2``, whose
     name has a dot): the key with the ``[name]`` selector; for another word, the names there are; else ''."""
-    names = [item["name"] for item in node if isinstance(item, dict) and isinstance(item.get("name"), str)]
+    names = _item_names(node)
     if part.isdigit() or not names:
         return ""
     for name in sorted(names, key=len, reverse=True):  # the longest name the key spells out from this part on

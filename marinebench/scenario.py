@@ -128,12 +128,7 @@ class ScenarioBase(BaseModel):
         """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``) that a
         run may set for itself, or None where there is none (no such key, a text, a list, a switch, a section set to
         null, a :data:`SHARED` setting)."""
-        if path in self.SHARED:
-            return None
-        node: Any = self.model_dump()
-        for part in path.split("."):
-            node = node.get(part) if isinstance(node, dict) else None
-        return node if isinstance(node, int | float) and not isinstance(node, bool) else None
+        return None if path in self.SHARED else _number_at(self.model_dump(), path)[2]
 
     def setting_paths(self) -> list[str]:
         """Every dotted path :meth:`setting` reads a number at (for error hints)."""
@@ -164,16 +159,12 @@ class ScenarioBase(BaseModel):
             return self
         doc = self.model_dump()
         for key, value in settings.items():
-            own = self.setting(key)
-            if own is None:
+            section, last, own = _number_at(doc, key)
+            if own is None or key in self.SHARED:
                 raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
                                  f" nor a numeric setting of it by its dotted path (e.g. sensors.<key>; "
                                  f"{' and '.join(self.SHARED)} are every run's)")
-            *path, last = key.split(".")
-            node = doc
-            for part in path:
-                node = node[part]
-            node[last] = int(value) if isinstance(own, int) and float(value).is_integer() else value
+            section[last] = int(value) if isinstance(own, int) and float(value).is_integer() else value
         return type(self).model_validate(doc)
 
     def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
@@ -212,6 +203,17 @@ class Scenario(ScenarioBase):
     def check_per_run(self, world: dict[str, float]) -> None:
         """A noise scale is not negative, and other than 1 only where there is noise to scale."""
         AsvPerRun.model_validate({"scenario": self.name, "noisy": self.sensors.position_noise.kind != "none", **world})
+
+
+def _number_at(doc: dict, path: str) -> tuple[dict | None, str, float | None]:
+    """In a dumped world, the mapping that holds a dotted ``path``'s last key, that key, and the number there (None
+    where there is no number: no such key, a text, a list, a switch, a section set to null)."""
+    *parents, last = path.split(".")
+    section: Any = doc
+    for part in parents:
+        section = section.get(part) if isinstance(section, dict) else None
+    value = section.get(last) if isinstance(section, dict) else None
+    return section, last, value if isinstance(value, int | float) and not isinstance(value, bool) else None
 
 
 def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Generator]:
