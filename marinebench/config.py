@@ -8,7 +8,16 @@ from __future__ import annotations
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    Discriminator,
+    Field,
+    Tag,
+    WithJsonSchema,
+    field_validator,
+    model_validator,
+)
 
 from marinebench.claims import Claim, SweepClaim
 from marinebench.controllers.spec import ControllerSpec
@@ -50,17 +59,42 @@ DEFAULT_SIGNALS = {"open_loop_asv": SIGNALS, "dp_supply": DP_SIGNALS, "rov_track
 TRUTH_SIGNALS = {"open_loop_asv": SIGNALS + ("x", "y", "psi")}
 
 
+def flat_settings(value: Any) -> Any:
+    """A ``world:`` mapping with its nested mappings read as dotted paths: ``{waves: {tp: 8}}`` is ``{waves.tp: 8}``
+    (what ``--set variants[npo].world.waves.tp=8`` writes into a world that lacks the key). A path given both ways
+    is refused; anything but a mapping is left to the type's own error."""
+    if not isinstance(value, dict):
+        return value
+    flat: dict[str, Any] = {}
+    for key, inner in value.items():
+        leaves = flat_settings(inner).items() if isinstance(inner, dict) and inner else [(None, inner)]
+        for sub, leaf in leaves:
+            path = str(key) if sub is None else f"{key}.{sub}"
+            if path in flat:
+                raise ValueError(f"'{path}' is given twice (as a dotted key and inside a mapping)")
+            flat[path] = leaf
+    return flat
+
+
+WorldSettings = Annotated[
+    dict[str, float],
+    BeforeValidator(flat_settings),
+    WithJsonSchema({"type": "object", "additionalProperties": {"type": ["number", "object"]}}),
+]
+"""A variant's (or a sweep group's) world settings: per-run keys and dotted paths, nested mappings flattened."""
+
+
 class Variant(BaseModel):
     model_config = STRICT
     name: str = Field(..., pattern=NAME, description="variant name used in tables and metrics.csv")
     label: str | None = Field(None, description="legend label (default: the name)")
     observer: ObserverTuning | None = Field(None, description="the observer under test (estimation experiments)")
     controller: ControllerSpec | None = Field(None, description="the controller (closed-loop rov_tracking scenarios)")
-    world: dict[str, float] = Field(
+    world: WorldSettings = Field(
         default_factory=dict, description="per-run world parameters: position_noise_scale (open_loop_asv); gnss_sigma, "
         "heading_sigma_deg, gm_time_constant, hs (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
         "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking); or any other numeric setting of the world by its "
-        "dotted path (e.g. waves.tp: 8), run in a world of its own"
+        "dotted path (e.g. waves.tp: 8, or nested: waves: {tp: 8}), run in a world of its own"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
     scenarios: list[str] | None = Field(
@@ -329,7 +363,7 @@ class SweepSpec(BaseModel):
                                  "(default: the variant's first)")
     params: dict[str, SweepParam] = Field(..., min_length=1, description="name -> sweepable parameter; the names are "
                                           "the arguments of marinebench sweep")
-    groups: dict[str, dict[str, float]] = Field(
+    groups: dict[str, WorldSettings] = Field(
         default_factory=lambda: {"default": {}}, description="named world settings, as a variant's world: takes them (e.g. GNSS models)"
     )
     metric: str | None = Field(None, description="metric plotted against each parameter (default: the experiment's first)")

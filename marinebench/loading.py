@@ -148,18 +148,31 @@ def _assign(doc: dict, parts: list, key: str, value: Any) -> str:
     """Set the value at one path of the document (creating missing mappings); the path as dotted indices."""
     node: Any = doc
     where: list[str] = []
-    for i, part in enumerate(parts):
+    i = 0
+    while True:
+        part, i = _dotted_key(node, parts, i)
         idx = _child(node, part, key)
         where.append(str(idx))
-        if i == len(parts) - 1:
+        if i == len(parts):
             node[idx] = value
-        else:
-            if isinstance(node, dict) and idx not in node:
-                if i < 2:
-                    _check_world_key(doc, key, where)
-                node[idx] = {}
-            node = node[idx]
-    return ".".join(where)
+            return ".".join(where)
+        if isinstance(node, dict) and idx not in node:
+            if len(where) <= 2:
+                _check_world_key(doc, key, where)
+            node[idx] = {}
+        node = node[idx]
+
+
+def _dotted_key(node: Any, parts: list, i: int) -> tuple[Any, int]:
+    """The part of a ``--set`` key at ``i``, or, where the mapping there has it as one key, the longest run of names
+    from ``i`` joined by dots (a world setting written ``waves.tp: 8``, set by ``...world.waves.tp=6``); and the
+    index of the part after it."""
+    if isinstance(node, dict):
+        for j in range(len(parts), i + 1, -1):
+            run = parts[i:j]
+            if all(isinstance(p, str) for p in run) and ".".join(run) in node:
+                return ".".join(run), j
+    return parts[i], i + 1
 
 
 def _child(node: Any, part: str | tuple[str], key: str) -> int | str:

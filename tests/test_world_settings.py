@@ -73,6 +73,34 @@ def test_a_world_setting_is_checked_as_the_files_own(world, expected):
     assert str(err.value).startswith(f"--set: {expected}")
 
 
+@pytest.mark.parametrize("sets", [
+    ["variants[npo].world={waves: {tp: 8}}"],  # nested, as a scenario file writes it
+    ["variants[npo].world.waves.tp=8"],  # --set's own dotted path: the same key
+    ["variants[npo].world={waves.tp: 5}", "variants[npo].world.waves.tp=8"],  # --set replaces the file's dotted key
+    ["variants[npo].world={waves: {tp: 5}}", "variants[npo].world.waves.tp=8"],  # ... and its nested one
+])
+def test_a_world_setting_may_be_nested_or_set_by_its_dotted_path(sets):
+    exp = _load(*sets)
+    assert exp.variants[0].world == {"waves.tp": 8.0}
+    assert world_batches(exp) == [({"waves.tp": 8.0}, [0]), ({}, [1])]
+
+
+def test_a_sweep_groups_world_may_be_nested():
+    exp = _load("sweep.groups={calm: {hs: 0.5, waves: {tp: 5}}}")
+    assert exp.sweep.groups == {"calm": {"hs": 0.5, "waves.tp": 5.0}}
+
+
+@pytest.mark.parametrize("world, expected", [
+    ("{waves: {tp: 8}, waves.tp: 3}", "variants.0.world: 'waves.tp' is given twice (as a dotted key and inside a mapping)"),
+    ("{waves: {tpp: 8}}", "variants.0.world: unknown world keys ['waves.tpp'] (did you mean waves.tp?)"),
+    ("{waves: {}}", "variants.0.world.waves: Input should be a valid number"),
+])
+def test_a_nested_world_setting_is_checked_by_its_dotted_path(world, expected):
+    with pytest.raises(ConfigError) as err:
+        _load(f"variants[npo].world={world}")
+    assert str(err.value).startswith(f"--set: {expected}")
+
+
 def test_a_sweep_of_a_world_setting_runs_each_point_in_its_world(tmp_path):
     """`sweep world.waves.tp=5..8`: a point's runs are those of the scenario with that Tp (to the bit); the variant's
     own value, the one the figure marks, is the scenario's 6.3 s."""
