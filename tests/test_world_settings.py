@@ -119,3 +119,14 @@ def test_a_sweep_of_a_world_setting_runs_each_point_in_its_world(tmp_path):
 
     swept, _ = load_experiment(folder / "config.resolved.yaml")
     assert tuning(swept, "tp") == pytest.approx(6.3)
+
+
+def test_a_worlds_own_design_is_kept_for_each_world():
+    """An ROV world's CDO design (``world_cdo``) under its key for the scenario's world, and under the settings' for
+    a variant's world that changes it; S3, where only that variant runs, has the latter alone."""
+    exp = load_checked(ROOT / "configs" / "tijjani_table3.yaml",
+                       ["variants[cdo_srise].world={cdo: {theta: 3}}", "seeds=1", "scenarios.*.horizon=0.5"])[0]
+    designs = run(exp, traces=False).designs
+    assert designs["S1"]["world_cdo (cdo.theta=3)"]["theta"] == 3.0
+    assert designs["S1"]["world_cdo"]["theta"] == exp.scenarios["S1"].cdo.theta != 3.0
+    assert [k for k in designs["S3"] if k.startswith("world_cdo")] == ["world_cdo (cdo.theta=3)"]

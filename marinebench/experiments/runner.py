@@ -321,13 +321,15 @@ def _run_single(exp: Experiment, progress: Callable[[int], None] | None, on_star
     done = [(np.array(index), _run_batch(exp.model_copy(update={
         "scenario": exp.scenario.with_settings(settings), "variants": [exp.variants[i] for i in index]}),
         progress, None, traces)) for settings, index in batches]
-    return _merged(exp, done)
+    return _merged(exp, done, [settings for settings, _ in batches])
 
 
-def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]]) -> RunResult:
-    """The results of one scenario's world batches (``(variant indices, result)`` each) as one result: runs in batch
-    order, variant indices the experiment's, the traced runs' traces side by side (NaN where a batch has no trace
-    of a signal)."""
+def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: list[dict[str, float]]) -> RunResult:
+    """The results of one scenario's world batches (``(variant indices, result)`` each, run in the ``worlds`` with
+    those settings) as one result: runs in batch order, variant indices the experiment's, the traced runs' traces side
+    by side (NaN where a batch has no trace of a signal), and the designs of each: a variant's under its name, a
+    world's own (an ROV world's CDO and EO) under its key for the scenario's world, with the settings of another
+    (``world_cdo (cdo.theta=3)``)."""
     offsets = np.cumsum([0] + [len(r.run_variant) for _, r in done])
     t = next((r.traces[0] for _, r in done if r.traces[0].size), np.zeros(0))
     traces = [t, {}, {}]
@@ -336,9 +338,11 @@ def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]]) -> RunRes
         traces[k] = {name: np.concatenate([r.traces[k].get(name, np.full((t.size, r.traced.size), np.nan))
                                            for _, r in done], axis=1) for name in names}
     designs: dict[str, dict] = {}
-    for _, r in done:
-        for key, design in r.designs.items():
-            designs.setdefault(key, design)
+    names = {v.name for v in exp.variants}
+    for (_, r), settings in zip(done, worlds):
+        world = ", ".join(f"{k}={v:g}" for k, v in settings.items())
+        for key, design in r.designs.items():  # a world's own (not a variant's) named by the world's settings
+            designs[key if key in names or not settings else f"{key} ({world})"] = design
     metrics = pd.concat([r.metrics for _, r in done], ignore_index=True)
     return RunResult(exp, metrics, summarise(metrics), tuple(traces),
                      np.concatenate([index[r.run_variant] for index, r in done]),
