@@ -61,13 +61,15 @@ TRUTH_SIGNALS = {"open_loop_asv": SIGNALS + ("x", "y", "psi")}
 
 def flat_settings(value: Any) -> Any:
     """A ``world:`` mapping with its nested mappings read as dotted paths: ``{waves: {tp: 8}}`` is ``{waves.tp: 8}``
-    (what ``--set variants[npo].world.waves.tp=8`` writes into a world that lacks the key). A path given both ways
-    is refused; anything but a mapping is left to the type's own error."""
+    (what ``--set variants[npo].world.waves.tp=8`` writes into a world that lacks the key). A path given both ways,
+    or an empty mapping, is refused; anything but a mapping is left to the type's own error."""
     if not isinstance(value, dict):
         return value
     flat: dict[str, Any] = {}
     for key, inner in value.items():
-        leaves = flat_settings(inner).items() if isinstance(inner, dict) and inner else [(None, inner)]
+        if inner == {}:
+            raise ValueError(f"'{key}': an empty mapping sets nothing (give its keys, e.g. {key}: {{<key>: <value>}})")
+        leaves = flat_settings(inner).items() if isinstance(inner, dict) else [(None, inner)]
         for sub, leaf in leaves:
             path = str(key) if sub is None else f"{key}.{sub}"
             if path in flat:
@@ -77,11 +79,12 @@ def flat_settings(value: Any) -> Any:
 
 
 WorldSettings = Annotated[
-    dict[str, float],
+    dict[str, bool | float | str | list | None],
     BeforeValidator(flat_settings),
-    WithJsonSchema({"type": "object", "additionalProperties": {"type": ["number", "object"]}}),
+    WithJsonSchema({"type": "object", "additionalProperties": {"type": ["number", "boolean", "string", "array", "object", "null"]}}),
 ]
-"""A variant's (or a sweep group's) world settings: per-run keys and dotted paths, nested mappings flattened."""
+"""A variant's (or a sweep group's) world settings: per-run keys (numbers, checked by the preflight) and settings of
+the world by their dotted paths (any value the world's own field takes), nested mappings flattened."""
 
 
 class Variant(BaseModel):
@@ -93,8 +96,9 @@ class Variant(BaseModel):
     world: WorldSettings = Field(
         default_factory=dict, description="per-run world parameters: position_noise_scale (open_loop_asv); gnss_sigma, "
         "heading_sigma_deg, gm_time_constant, hs (dp_supply); estimate_offset_depth, estimate_offset_yaw_deg, depth_noise, yaw_noise_deg, "
-        "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking); or any other numeric setting of the world by its "
-        "dotted path (e.g. waves.tp: 8, or nested: waves: {tp: 8}), run in a world of its own"
+        "gyro_noise_dps, damping_scale, buoyancy_scale (rov_tracking); or any other setting of the world by its "
+        "dotted path (e.g. waves.tp: 8, or nested: waves: {tp: 8}; sensors.hold: measurement; design_vessel: null), run "
+        "in a world of its own"
     )
     tags: dict[str, str | float] = Field(default_factory=dict, description="extra metrics.csv columns")
     scenarios: list[str] | None = Field(

@@ -29,6 +29,7 @@ from marinebench.keypaths import did_you_mean, keyed_message, near_misses
 from marinebench.observers.custom import check_built as check_observer
 from marinebench.observers.custom import observer_class
 from marinebench.plugins import split_source
+from marinebench.settings import lax_boolean
 
 
 def preflight(exp: Experiment, file: Path, sweep_params: bool = True) -> None:
@@ -163,19 +164,23 @@ def _fastest(exp: Experiment, named: list, world: Any) -> str:
     return f"the fastest: variant {max(rates, key=rates.__getitem__)!r}"
 
 
-def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -> None:
-    """A run's world settings (a variant's ``world:``, a sweep group): keys the scenario takes per run, or numeric
-    settings of the world by their dotted paths (a world of their own, :meth:`~marinebench.scenario.ScenarioBase.
-    with_settings`); values within the bounds of the world's own fields (e.g. no negative noise level)."""
+def _check_world(scenario: Any, world: dict[str, Any], file: Path, key: str) -> None:
+    """A run's world settings (a variant's ``world:``, a sweep group): numbers for the keys the scenario takes per
+    run, or settings of the world by their dotted paths (a world of their own, :meth:`~marinebench.scenario.
+    ScenarioBase.with_settings`); values within the bounds of the world's own fields (e.g. no negative noise level)."""
     allowed = list(scenario.per_run_defaults())
     settings = scenario.world_settings(world)
-    unknown = sorted(k for k in settings if scenario.setting(k) is None)
+    unknown = sorted(k for k in settings if not scenario.has_setting(k))
     if unknown:
         near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in [
             *near_misses(u, allowed), *difflib.get_close_matches(u, scenario.setting_paths(), 3, 0.8)])))
-        takes = near or (f" (per run: {allowed}, or a numeric world setting by its dotted path, e.g. sensors.<key>; "
+        takes = near or (f" (per run: {allowed}, or a setting of the world by its dotted path, e.g. sensors.<key>; "
                          f"{' and '.join(scenario.SHARED)} are every run's)")
         raise ConfigError(file, key, f"unknown world keys {unknown}{takes}")
+    for k, v in world.items():  # per-run keys are numbers (other settings are checked by their world's fields)
+        if k not in settings and (isinstance(v, bool) or not isinstance(v, float)):
+            raise ConfigError(file, f"{key}.{k}", lax_boolean(v, 0.0)[1] if isinstance(v, bool) else
+                              f"Input should be a number (a per-run key), not {v!r}")
     try:
         scenario.check_world(world)
     except ValidationError as exc:
@@ -186,6 +191,9 @@ def _check_world(scenario: Any, world: dict[str, float], file: Path, key: str) -
             keys, rest = keyed_message(msg)
             at, msg = (keys[0], rest) if keys else (next(iter(world)), msg)
         raise ConfigError(file, f"{key}.{at}", msg) from None
+    except ValueError as exc:  # a path that another of the settings takes away (waves: null beside waves.tp)
+        keys, rest = keyed_message(str(exc))
+        raise ConfigError(file, f"{key}.{keys[0]}" if keys else key, rest if keys else str(exc)) from None
 
 
 def _preflight_variant(exp: Experiment, file: Path, i: int, v: Variant, plant: Any) -> Any:

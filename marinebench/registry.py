@@ -17,8 +17,8 @@ def _per_run(scenario: type) -> str:
     """' Per run (world:, world.<key> sweeps): a, b; ...' for a scenario kind whose runs may set world keys of their
     own (its defaults need no file: ``model_construct`` fills them without the required fields)."""
     keys = list(scenario.model_construct().per_run_defaults())
-    return (f" Per run (world:, world.<key> sweeps): {', '.join(keys)}; any other numeric setting by its dotted path "
-            "(waves.tp), in a world of its own.") if keys else ""
+    return (f" Per run (world:, world.<key> sweeps): {', '.join(keys)}; any other setting by its dotted path "
+            "(sensors.ts, a number a sweep may vary; a switch, text, list or section too), in a world of its own.") if keys else ""
 
 
 #: Descriptions of the kinds whose models do not tell them apart (one ControllerSpec, one ErrorMetric for three).

@@ -18,7 +18,7 @@ from marinebench.batch import columns
 from marinebench.environment.signals import RandomSinusoid, Signal, SinusoidBatch
 from marinebench.models.cybership2 import CyberShip2, CyberShip2Params
 from marinebench.sensors.noise import Noise, NoiseBatch, NoNoise
-from marinebench.settings import NAME, STRICT
+from marinebench.settings import NAME, STRICT, lax_boolean
 
 Vec3 = tuple[float, float, float]
 
@@ -125,47 +125,67 @@ class ScenarioBase(BaseModel):
     SHARED: ClassVar[tuple[str, ...]] = ("horizon", "dt")
 
     def setting(self, path: str) -> float | None:
-        """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``) that a
-        run may set for itself, or None where there is none (no such key, a text, a list, a switch, a section set to
-        null, a :data:`SHARED` setting)."""
-        return None if path in self.SHARED else _number_at(self.model_dump(), path)[2]
+        """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``), what a
+        sweep may vary, or None where there is none (no such key, a text, a list, a switch, a section set to null, a
+        :data:`SHARED` setting)."""
+        if path in self.SHARED:
+            return None
+        section, last = _section_of(self.model_dump(), path)
+        value = section.get(last) if section is not None else None
+        return value if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+    def has_setting(self, path: str) -> bool:
+        """Whether a run may set the setting at a dotted ``path`` for itself (in a world of its own): a key of the
+        world (a number, a switch, a text, a list, a whole section) other than a :data:`SHARED` one."""
+        section, last = _section_of(self.model_dump(), path)
+        return section is not None and last in section and path not in self.SHARED
 
     def setting_paths(self) -> list[str]:
-        """Every dotted path :meth:`setting` reads a number at (for error hints)."""
+        """Every dotted path :meth:`has_setting` accepts down to the leaves (for error hints)."""
         def walk(node: Any, prefix: str) -> list[str]:
-            if isinstance(node, dict):
+            if isinstance(node, dict) and node:
                 return [p for key, value in node.items() for p in walk(value, f"{prefix}{key}.")]
-            return [prefix[:-1]] if isinstance(node, int | float) and not isinstance(node, bool) else []
+            return [prefix[:-1]]
         return [path for path in walk(self.model_dump(), "") if path not in self.SHARED]
 
-    def world_settings(self, world: dict[str, float]) -> dict[str, float]:
-        """The keys of a run's ``world:`` that are not per-run keys: numeric settings of the world by their dotted
-        paths, for which the runner builds the run a world of its own (:meth:`with_settings`)."""
+    def world_settings(self, world: dict[str, Any]) -> dict[str, Any]:
+        """The keys of a run's ``world:`` that are not per-run keys: settings of the world by their dotted paths, for
+        which the runner builds the run a world of its own (:meth:`with_settings`)."""
         per_run = self.per_run_defaults()
         return {key: value for key, value in world.items() if key not in per_run}
 
-    def check_world(self, world: dict[str, float]) -> None:
+    def check_world(self, world: dict[str, Any]) -> None:
         """A run's world settings: its per-run keys (:meth:`check_per_run`) and the world's settings by their paths
         (:meth:`with_settings`), bounded as the file's own values are."""
         settings = self.world_settings(world)
         self.check_per_run({key: value for key, value in world.items() if key not in settings})
         self.with_settings(settings)
 
-    def with_settings(self, settings: dict[str, float]) -> ScenarioBase:
-        """This world with ``settings`` (dotted paths to numeric settings, :meth:`setting`) written in, checked as
-        the file's own values are: raises pydantic's ValidationError, or ValueError for a path to no numeric setting
-        a run may set."""
+    def with_settings(self, settings: dict[str, Any]) -> ScenarioBase:
+        """This world with ``settings`` (dotted paths to its settings, :meth:`has_setting`) written in, checked as the
+        file's own values are: raises pydantic's ValidationError, or ValueError for a path to no setting a run may
+        set. A whole number where the world has an integer is written as one."""
         if not settings:
             return self
         doc = self.model_dump()
         for key, value in settings.items():
-            section, last, own = _number_at(doc, key)
-            if own is None or key in self.SHARED:
+            section, last = _section_of(doc, key)
+            if null := _null_section(doc, key):
+                raise ValueError(f"{key}: not a setting of this world, whose {null} is null")
+            if section is None or last not in section or key in self.SHARED:
                 raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
-                                 f" nor a numeric setting of it by its dotted path (e.g. sensors.<key>; "
+                                 f" nor a setting of it by its dotted path (e.g. sensors.<key>; "
                                  f"{' and '.join(self.SHARED)} are every run's)")
-            section[last] = int(value) if isinstance(own, int) and float(value).is_integer() else value
-        return type(self).model_validate(doc)
+            own = section[last]
+            whole = isinstance(own, int) and not isinstance(own, bool) and isinstance(value, float) and value.is_integer()
+            section[last] = int(value) if whole else value
+        world = type(self).model_validate(doc)
+        read = world.model_dump()
+        for key, value in settings.items():  # pydantic's lax mode would take true for a number, 1 for a switch
+            section, last = _section_of(read, key)
+            if found := lax_boolean(value, section[last]):
+                raise ValueError(f"{'.'.join(map(str, (key, *found[0])))}: {found[1]}")
+        return world
 
     def assumptions(self, per_run: Collection[str] = ()) -> list[str]:
         """What this world's own settings assume beyond its paper, one phrase each, for the manifest (which names the
@@ -205,15 +225,27 @@ class Scenario(ScenarioBase):
         AsvPerRun.model_validate({"scenario": self.name, "noisy": self.sensors.position_noise.kind != "none", **world})
 
 
-def _number_at(doc: dict, path: str) -> tuple[dict | None, str, float | None]:
-    """In a dumped world, the mapping that holds a dotted ``path``'s last key, that key, and the number there (None
-    where there is no number: no such key, a text, a list, a switch, a section set to null)."""
+def _null_section(doc: dict, path: str) -> str | None:
+    """The section above a dotted ``path`` that is set to null in a dumped world (``waves`` for ``waves.tp`` in calm
+    water), if any."""
+    parts, node = path.split("."), doc
+    for i, part in enumerate(parts[:-1]):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+        if node is None:
+            return ".".join(parts[:i + 1])
+    return None
+
+
+def _section_of(doc: dict, path: str) -> tuple[dict | None, str]:
+    """In a dumped world, the mapping that holds a dotted ``path``'s last key (None where a part on the way is not a
+    mapping: no such key, a section set to null), and that key."""
     *parents, last = path.split(".")
     section: Any = doc
     for part in parents:
         section = section.get(part) if isinstance(section, dict) else None
-    value = section.get(last) if isinstance(section, dict) else None
-    return section, last, value if isinstance(value, int | float) and not isinstance(value, bool) else None
+    return (section if isinstance(section, dict) else None), last
 
 
 def stream_rngs(root: int, seeds: list[int], stream: str) -> list[np.random.Generator]:

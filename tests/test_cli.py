@@ -881,8 +881,9 @@ def test_list_shows_registered_kinds():
     assert len(set(observers.values())) == len(observers)  # each kind its own line, even when classes are shared
     scenarios = kinds()["scenarios"]  # with the world keys their runs may set
     assert scenarios["dp_supply"].endswith("Per run (world:, world.<key> sweeps): gnss_sigma, heading_sigma_deg, "
-                                           "gm_time_constant, hs; any other numeric setting by its dotted path "
-                                           "(waves.tp), in a world of its own.")
+                                           "gm_time_constant, hs; any other setting by its dotted path "
+                                           "(sensors.ts, a number a sweep may vary; a switch, text, list or section "
+                                           "too), in a world of its own.")
     assert "estimate_offset_depth, estimate_offset_yaw_deg, depth_noise" in scenarios["rov_tracking"]
     assert "Per run (world:, world.<key> sweeps): position_noise_scale; any other" in scenarios["open_loop_asv"]
 

@@ -308,11 +308,11 @@ def test_a_variants_world_setting_is_bounded_as_the_scenarios_own(world, key):
 @pytest.mark.parametrize("group, expected", [
     ("gnss_sigma=-1", "sweep.groups.dgnss.gnss_sigma: Input should be greater than or equal to 0"),
     ("foo=1", ("sweep.groups.dgnss: unknown world keys ['foo'] (per run: ['gnss_sigma', 'heading_sigma_deg', "
-                "'gm_time_constant', 'hs'], or a numeric world setting by its dotted path, e.g. sensors.<key>; horizon "
+                "'gm_time_constant', 'hs'], or a setting of the world by its dotted path, e.g. sensors.<key>; horizon "
                 "and dt are every run's)")),
     ("gnss_sgima=1", "sweep.groups.dgnss: unknown world keys ['gnss_sgima'] (did you mean gnss_sigma?)"),
     ("dt=0.1", ("sweep.groups.dgnss: unknown world keys ['dt'] (per run: ['gnss_sigma', 'heading_sigma_deg', "
-               "'gm_time_constant', 'hs'], or a numeric world setting by its dotted path, e.g. sensors.<key>; horizon "
+               "'gm_time_constant', 'hs'], or a setting of the world by its dotted path, e.g. sensors.<key>; horizon "
                "and dt are every run's)")),
 ])
 def test_a_sweep_groups_world_settings_are_checked_where_they_are_written(group, expected):

@@ -57,8 +57,8 @@ def test_claim_and_metric_kinds_are_dropped():
 
 
 def test_dict_values_keep_their_key():
-    err = first_error(Experiment, experiment(world={"gnss_sigma": "x"}))
-    assert key_path(Experiment, err["loc"])[0] == "variants.0.world.gnss_sigma"
+    err = first_error(Experiment, experiment(tags={"gnss": ["x"]}))
+    assert key_path(Experiment, err["loc"])[0] == "variants.0.tags.gnss"
 
 
 def test_scenario_file_of_another_kind(tmp_path):

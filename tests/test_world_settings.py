@@ -60,9 +60,16 @@ def test_the_worlds_batches_and_their_traces_merge_as_one_run():
                                    "with a fractional part")),
     ("{waves.tpp: 3}", "variants.0.world: unknown world keys ['waves.tpp'] (did you mean waves.tp?)"),
     ("{horizon: 10}", ("variants.0.world: unknown world keys ['horizon'] (per run: ['gnss_sigma', 'heading_sigma_deg', "
-                      "'gm_time_constant', 'hs'], or a numeric world setting by its dotted path, e.g. sensors.<key>; "
+                      "'gm_time_constant', 'hs'], or a setting of the world by its dotted path, e.g. sensors.<key>; "
                       "horizon and dt are every run's)")),
-    ("{waves.rao: 1}", "variants.0.world: unknown world keys ['waves.rao'] (per run: "),  # a list, not a number
+    ("{waves.rao: 1}", "variants.0.world.waves.rao: Input should be a valid tuple"),  # a list, not a number
+    ("{sensors.hold: held}", "variants.0.world.sensors.hold: Input should be 'noise' or 'measurement'"),
+    ("{gnss_sigma: loud}", "variants.0.world.gnss_sigma: Input should be a number (a per-run key), not 'loud'"),
+    ("{hs: true}", "variants.0.world.hs: Input should be a number, not a boolean (YAML reads an unquoted true, "),
+    ("{waves.tp: on}", "variants.0.world.waves.tp: Input should be a number, not a boolean (YAML reads an unquoted "),
+    ("{sensors.notch: 1}", "variants.0.world.sensors.notch: Input should be true or false, not a number"),
+    ("{waves.rao: [0.2, yes, 0.01]}", "variants.0.world.waves.rao.1: Input should be a number, not a boolean"),
+    ("{waves: null, waves.tp: 8}", "variants.0.world.waves.tp: not a setting of this world, whose waves is null"),
     # a world that builds but cannot run: found at validation, in the variant's own world
     ("{waves.gamma: 1e300}", ("variants.0.world: the world cannot be run from these values (not finite at t = 0: its "
                              "measurement)")),
@@ -93,7 +100,7 @@ def test_a_sweep_groups_world_may_be_nested():
 @pytest.mark.parametrize("world, expected", [
     ("{waves: {tp: 8}, waves.tp: 3}", "variants.0.world: 'waves.tp' is given twice (as a dotted key and inside a mapping)"),
     ("{waves: {tpp: 8}}", "variants.0.world: unknown world keys ['waves.tpp'] (did you mean waves.tp?)"),
-    ("{waves: {}}", "variants.0.world.waves: Input should be a valid number"),
+    ("{waves: {}}", "variants.0.world: 'waves': an empty mapping sets nothing (give its keys, e.g. waves: {<key>: <value>})"),
 ])
 def test_a_nested_world_setting_is_checked_by_its_dotted_path(world, expected):
     with pytest.raises(ConfigError) as err:
@@ -130,3 +137,22 @@ def test_a_worlds_own_design_is_kept_for_each_world():
     assert designs["S1"]["world_cdo (cdo.theta=3)"]["theta"] == 3.0
     assert designs["S1"]["world_cdo"]["theta"] == exp.scenarios["S1"].cdo.theta != 3.0
     assert [k for k in designs["S3"] if k.startswith("world_cdo")] == ["world_cdo (cdo.theta=3)"]
+
+
+@pytest.mark.parametrize("world, scenario", [
+    ("{sensors: {hold: measurement, notch: false}}", ["scenario.sensors.hold=measurement", "scenario.sensors.notch=false"]),
+    ("{design_vessel: null}", ["scenario.design_vessel=null"]),  # the observers on the plant's model: no mismatch
+    ("{waves: null}", ["scenario.waves=null"]),  # calm water
+])
+def test_a_variant_may_switch_a_worlds_text_switch_or_section(world, scenario):
+    """Any setting of the world, not only a number, by its path: npo with it gives, to the bit, the NPO of the
+    scenario with it, and the variant's line under the table names it."""
+    exp = _load(f"variants[npo].world={world}")
+    mixed = run(exp, traces=False)
+    own = run(_load(*scenario), traces=False)
+    pd.testing.assert_series_equal(_values(mixed, "npo"), _values(own, "npo"))
+    assert (_values(mixed, "npo") != _values(run(_load(), traces=False), "npo")).any()
+    from marinebench.results.tables import markdown_table
+
+    (line,) = [x for x in markdown_table(exp, mixed.summary).splitlines() if x.startswith("- `npo`")]
+    assert "; world: " in line and line.endswith(", ".join(f"{k}={v}" for k, v in exp.variants[0].world.items()))

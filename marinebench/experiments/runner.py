@@ -7,11 +7,13 @@ Observers of the same kind run as one batched group with per-run gains.
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -236,12 +238,13 @@ def run_steps(exp: Experiment) -> int:
     return sum(len(p.variants) * p.seeds * round(p.scenario.horizon / p.scenario.dt) for p in map(exp.part, exp.scenario_names))
 
 
-def world_batches(exp: Experiment) -> list[tuple[dict[str, float], list[int]]]:
+def world_batches(exp: Experiment) -> list[tuple[dict[str, Any], list[int]]]:
     """A single-scenario experiment's variants (their indices) by the world they run in, in the order of their first
     variant: the variants whose ``world:`` sets per-run keys only share the scenario's world and one batch; those
-    that set numeric settings of the world by their dotted paths (``waves.tp``) run, per distinct set of them, in a
-    world with those settings, a batch of its own (:meth:`~marinebench.scenario.ScenarioBase.world_settings`)."""
-    batches: dict[str, tuple[dict[str, float], list[int]]] = {}
+    that set other settings of the world by their dotted paths (``waves.tp``, ``sensors.hold``) run, per distinct set
+    of them, in a world with those settings, a batch of its own (:meth:`~marinebench.scenario.ScenarioBase.
+    world_settings`)."""
+    batches: dict[str, tuple[dict[str, Any], list[int]]] = {}
     for i, v in enumerate(exp.variants):
         settings = exp.scenario.world_settings(v.world)
         batches.setdefault(repr(sorted(settings.items())), (settings, []))[1].append(i)
@@ -324,7 +327,7 @@ def _run_single(exp: Experiment, progress: Callable[[int], None] | None, on_star
     return _merged(exp, done, [settings for settings, _ in batches])
 
 
-def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: list[dict[str, float]]) -> RunResult:
+def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: list[dict[str, Any]]) -> RunResult:
     """The results of one scenario's world batches (``(variant indices, result)`` each, run in the ``worlds`` with
     those settings) as one result: runs in batch order, variant indices the experiment's, the traced runs' traces side
     by side (NaN where a batch has no trace of a signal), and the designs of each: a variant's under its name, a
@@ -340,7 +343,7 @@ def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: l
     designs: dict[str, dict] = {}
     names = {v.name for v in exp.variants}
     for (_, r), settings in zip(done, worlds):
-        world = ", ".join(f"{k}={v:g}" for k, v in settings.items())
+        world = ", ".join(f"{k}={_shown(v)}" for k, v in settings.items())
         for key, design in r.designs.items():  # a world's own (not a variant's) named by the world's settings
             designs[key if key in names or not settings else f"{key} ({world})"] = design
     metrics = pd.concat([r.metrics for _, r in done], ignore_index=True)
@@ -349,6 +352,11 @@ def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: l
                      np.concatenate([r.run_seed for _, r in done]), sum(r.wall_time for _, r in done),
                      max(r.max_rate for _, r in done), designs,
                      traced=np.concatenate([r.traced + offset for (_, r), offset in zip(done, offsets)]))
+
+
+def _shown(value: Any) -> str:
+    """A world setting's value as a design's name shows it: a number as ``3``, anything else as JSON (``null``)."""
+    return f"{value:g}" if isinstance(value, int | float) and not isinstance(value, bool) else json.dumps(value)
 
 
 def _run_batch(

@@ -65,6 +65,15 @@ def settings_text(settings) -> str:
                      if val is not None and val != {} and settings.kind in only_for.get(k, (settings.kind,)))
 
 
+def variant_text(v) -> str:
+    """A variant's settings as the list under a table gives them: its controller's, its observer's, and the world
+    settings it runs with (``world: sensors.hold=measurement``), if any."""
+    parts = [settings_text(t) for t in (v.controller, v.observer) if t is not None]
+    if v.world:
+        parts.append("world: " + ", ".join(f"{k}={val}" for k, val in v.world.items()))
+    return "; ".join(parts)
+
+
 def md_cell(text: object) -> str:
     """``text`` as one cell of a markdown pipe table: a ``|`` in it (a label "RISE | old", a claim about |e_u|) escaped
     as ``\\|``, so that it does not split the row; a line break as a space."""
@@ -162,7 +171,7 @@ def study_table(exp: Experiment, summary: pd.DataFrame) -> str:
     lines += ["", "Variants:", ""]
     for v in exp.variants:
         where = ", ".join(v.scenarios or exp.scenario_names)
-        lines.append(f"- `{v.name}` ({where}): " + settings_text(v.observer or v.controller))
+        lines.append(f"- `{v.name}` ({where}): " + variant_text(v))
     return "\n".join(lines) + "\n"
 
 
@@ -210,8 +219,7 @@ def markdown_table(exp: Experiment, summary: pd.DataFrame) -> str:
 
 def _variant_lines(exp: Experiment) -> list[str]:
     """The list of variants under a table, each with its settings."""
-    return ["", "Variants:", "", *(f"- `{v.name}`: " + "; ".join(settings_text(t) for t in (v.controller, v.observer)
-                                                                 if t is not None) for v in exp.variants)]
+    return ["", "Variants:", "", *(f"- `{v.name}`: " + variant_text(v) for v in exp.variants)]
 
 
 def _blocks(exp: Experiment) -> list[tuple[str, list[tuple[str, str]]]]:
