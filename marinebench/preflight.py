@@ -96,13 +96,11 @@ def _preflight_worlds(exp: Experiment, file: Path, key: str, positions: list[int
     """Preflight of one scenario's variants in its own world (their settings, designs, signals), then in each world
     their settings make (:func:`~marinebench.experiments.runner.world_batches`: designs on that world's vessel, the
     step, the first step), named at the first such variant's ``world``."""
-    from marinebench.experiments.runner import world_batches
+    from marinebench.experiments.runner import world_parts
 
     _preflight_single(exp, file, key, positions)
-    for settings, index in world_batches(exp):
+    for settings, index, own in world_parts(exp):
         if settings:
-            own = exp.model_copy(update={"scenario": exp.scenario.with_settings(settings),
-                                         "variants": [exp.variants[j] for j in index]})
             _preflight_single(own, file, f"variants.{positions[index[0]]}.world", [positions[j] for j in index],
                               signals=False)
 

@@ -156,3 +156,21 @@ def test_a_variant_may_switch_a_worlds_text_switch_or_section(world, scenario):
 
     (line,) = [x for x in markdown_table(exp, mixed.summary).splitlines() if x.startswith("- `npo`")]
     assert "; world: " in line and line.endswith(", ".join(f"{k}={v}" for k, v in exp.variants[0].world.items()))
+
+
+def test_design_and_the_manifest_give_a_variants_design_on_its_own_world():
+    """npo with `design_vessel: null` is designed on the plant's model: `marinebench design` prints, and the run
+    records, the design of a config whose scenario has it, while resetting keeps the scenario's."""
+    import json
+
+    from marinebench.experiments.runner import design_summary
+
+    sets = ["--set", "variants[npo].world={design_vessel: null}"]
+    res = CliRunner().invoke(app, ["design", str(CONFIG), "--json", *sets])
+    assert res.exit_code == 0, res.output
+    shown = json.loads(res.output)["torben_fig1"]
+    plain = json.loads(json.dumps(design_summary(_load("scenario.design_vessel=null")), default=float))
+    mismatched = json.loads(json.dumps(design_summary(_load()), default=float))
+    assert shown["npo"] == plain["npo"] != mismatched["npo"] and shown["resetting"] == mismatched["resetting"]
+    recorded = json.loads(json.dumps(run(_load(sets[1]), traces=False).designs, default=float))
+    assert recorded == shown

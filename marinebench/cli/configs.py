@@ -52,14 +52,14 @@ def design(
     them. With --set, e.g. scenario.cdo.lmi_decay=0.2, a design is recomputed for other settings."""
     import yaml
 
-    from marinebench.experiments.runner import design_summary
+    from marinebench.experiments.runner import designs as designs_of
 
     designs = {}
     for f in files:
         with one_line_errors():
             exp, _ = load_config(f, set_ or [], None, None, profile)
-            parts = {name: design_summary(exp.part(name)) for name in exp.scenarios} if exp.scenarios else None
-            designs[exp.name] = parts or design_summary(exp)
+            parts = {name: designs_of(exp.part(name)) for name in exp.scenarios} if exp.scenarios else None
+            designs[exp.name] = parts or designs_of(exp)
     plain = json.loads(json.dumps(designs, default=float))  # numpy scalars -> floats
     if as_json:
         sys.stdout.write(json.dumps(plain, indent=2) + "\n")

@@ -321,37 +321,53 @@ def _run_single(exp: Experiment, progress: Callable[[int], None] | None, on_star
         return _run_batch(exp, progress, on_start, traces)
     if on_start is not None:
         on_start(steps(exp))
-    done = [(np.array(index), _run_batch(exp.model_copy(update={
-        "scenario": exp.scenario.with_settings(settings), "variants": [exp.variants[i] for i in index]}),
-        progress, None, traces)) for settings, index in batches]
-    return _merged(exp, done, [settings for settings, _ in batches])
+    done = [(settings, np.array(index), _run_batch(part, progress, None, traces)) for settings, index, part in world_parts(exp)]
+    return _merged(exp, done)
 
 
-def _merged(exp: Experiment, done: list[tuple[np.ndarray, RunResult]], worlds: list[dict[str, Any]]) -> RunResult:
-    """The results of one scenario's world batches (``(variant indices, result)`` each, run in the ``worlds`` with
-    those settings) as one result: runs in batch order, variant indices the experiment's, the traced runs' traces side
-    by side (NaN where a batch has no trace of a signal), and the designs of each: a variant's under its name, a
+def world_parts(exp: Experiment) -> list[tuple[dict[str, Any], list[int], Experiment]]:
+    """:func:`world_batches` with each batch's own experiment: its variants, in a world built with its settings."""
+    return [(settings, index, exp.model_copy(update={"scenario": exp.scenario.with_settings(settings),
+                                                     "variants": [exp.variants[i] for i in index]}))
+            for settings, index in world_batches(exp)]
+
+
+def designs(exp: Experiment) -> dict[str, dict]:
+    """:func:`design_summary` of a single-scenario experiment over the worlds its variants run in (each variant's
+    designs on its own world's vessel), as a run's manifest records them (:func:`merged_designs`)."""
+    return merged_designs(exp, [(settings, design_summary(part)) for settings, _, part in world_parts(exp)])
+
+
+def merged_designs(exp: Experiment, found: list[tuple[dict[str, Any], dict[str, dict]]]) -> dict[str, dict]:
+    """The designs of each world (its settings, its :func:`design_summary`) as one: a variant's under its name, a
     world's own (an ROV world's CDO and EO) under its key for the scenario's world, with the settings of another
     (``world_cdo (cdo.theta=3)``)."""
-    offsets = np.cumsum([0] + [len(r.run_variant) for _, r in done])
-    t = next((r.traces[0] for _, r in done if r.traces[0].size), np.zeros(0))
+    names = {v.name for v in exp.variants}
+    out: dict[str, dict] = {}
+    for settings, designs_there in found:
+        world = ", ".join(f"{k}={_shown(v)}" for k, v in settings.items())
+        for key, design in designs_there.items():
+            out[key if key in names or not settings else f"{key} ({world})"] = design
+    return out
+
+
+def _merged(exp: Experiment, done: list[tuple[dict[str, Any], np.ndarray, RunResult]]) -> RunResult:
+    """The results of one scenario's world batches (``(settings, variant indices, result)`` each) as one result: runs
+    in batch order, variant indices the experiment's, the traced runs' traces side by side (NaN where a batch has no
+    trace of a signal), and the designs of each world (:func:`merged_designs`)."""
+    offsets = np.cumsum([0] + [len(r.run_variant) for _, _, r in done])
+    t = next((r.traces[0] for _, _, r in done if r.traces[0].size), np.zeros(0))
     traces = [t, {}, {}]
     for k in (1, 2):  # truth, estimates: (T, R) per signal
-        names = sorted({name for _, r in done for name in r.traces[k]})
+        names = sorted({name for _, _, r in done for name in r.traces[k]})
         traces[k] = {name: np.concatenate([r.traces[k].get(name, np.full((t.size, r.traced.size), np.nan))
-                                           for _, r in done], axis=1) for name in names}
-    designs: dict[str, dict] = {}
-    names = {v.name for v in exp.variants}
-    for (_, r), settings in zip(done, worlds):
-        world = ", ".join(f"{k}={_shown(v)}" for k, v in settings.items())
-        for key, design in r.designs.items():  # a world's own (not a variant's) named by the world's settings
-            designs[key if key in names or not settings else f"{key} ({world})"] = design
-    metrics = pd.concat([r.metrics for _, r in done], ignore_index=True)
+                                           for _, _, r in done], axis=1) for name in names}
+    metrics = pd.concat([r.metrics for _, _, r in done], ignore_index=True)
     return RunResult(exp, metrics, summarise(metrics), tuple(traces),
-                     np.concatenate([index[r.run_variant] for index, r in done]),
-                     np.concatenate([r.run_seed for _, r in done]), sum(r.wall_time for _, r in done),
-                     max(r.max_rate for _, r in done), designs,
-                     traced=np.concatenate([r.traced + offset for (_, r), offset in zip(done, offsets)]))
+                     np.concatenate([index[r.run_variant] for _, index, r in done]),
+                     np.concatenate([r.run_seed for _, _, r in done]), sum(r.wall_time for _, _, r in done),
+                     max(r.max_rate for _, _, r in done), merged_designs(exp, [(w, r.designs) for w, _, r in done]),
+                     traced=np.concatenate([r.traced + offset for (_, _, r), offset in zip(done, offsets)]))
 
 
 def _shown(value: Any) -> str:
