@@ -169,6 +169,8 @@ def _check_world(scenario: Any, world: dict[str, Any], file: Path, key: str) -> 
     allowed = list(scenario.per_run_defaults())
     settings = scenario.world_settings(world)
     unknown = sorted(k for k in settings if not scenario.has_setting(k))
+    if nulled := next(((k, null) for k in unknown if (null := scenario.null_section(k))), None):
+        raise ConfigError(file, f"{key}.{nulled[0]}", f"not a setting of this world, whose {nulled[1]} is null")
     if unknown:
         near = did_you_mean(list(dict.fromkeys(m for u in unknown for m in [
             *near_misses(u, allowed), *difflib.get_close_matches(u, scenario.setting_paths(), 3, 0.8)])))
@@ -189,7 +191,7 @@ def _check_world(scenario: Any, world: dict[str, Any], file: Path, key: str) -> 
             keys, rest = keyed_message(msg)
             at, msg = (keys[0], rest) if keys else (next(iter(world)), msg)
         raise ConfigError(file, f"{key}.{at}", msg) from None
-    except ValueError as exc:  # a path that another of the settings takes away (waves: null beside waves.tp)
+    except ValueError as exc:  # a path inside another of the settings (waves.tp beside waves: null)
         keys, rest = keyed_message(str(exc))
         raise ConfigError(file, f"{key}.{keys[0]}" if keys else key, rest if keys else str(exc)) from None
 

@@ -140,6 +140,18 @@ class ScenarioBase(BaseModel):
         section, last = _section_of(self.model_dump(), path)
         return section is not None and last in section and path not in self.SHARED
 
+    def null_section(self, path: str) -> str | None:
+        """The section above a dotted ``path`` that this world sets to null (``waves`` for ``waves.tp`` in calm
+        water), if any: why :meth:`has_setting` is False for a path that other worlds of its kind have."""
+        parts, node = path.split("."), self.model_dump()
+        for i, part in enumerate(parts[:-1]):
+            if not isinstance(node, dict) or part not in node:
+                return None
+            node = node[part]
+            if node is None:
+                return ".".join(parts[:i + 1])
+        return None
+
     def setting_paths(self) -> list[str]:
         """Every dotted path :meth:`has_setting` accepts down to the leaves (for error hints)."""
         def walk(node: Any, prefix: str) -> list[str]:
@@ -168,9 +180,12 @@ class ScenarioBase(BaseModel):
         if not settings:
             return self
         doc = self.model_dump()
+        for key in settings:
+            if outer := next((p for p in settings if key.startswith(p + ".")), None):
+                raise ValueError(f"{key}: inside {outer}, which these settings set too (give one or the other)")
         for key, value in settings.items():
             section, last = _section_of(doc, key)
-            if null := _null_section(doc, key):
+            if null := self.null_section(key):
                 raise ValueError(f"{key}: not a setting of this world, whose {null} is null")
             if section is None or last not in section or key in self.SHARED:
                 raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
@@ -223,19 +238,6 @@ class Scenario(ScenarioBase):
     def check_per_run(self, world: dict[str, float]) -> None:
         """A noise scale is not negative, and other than 1 only where there is noise to scale."""
         AsvPerRun.model_validate({"scenario": self.name, "noisy": self.sensors.position_noise.kind != "none", **world})
-
-
-def _null_section(doc: dict, path: str) -> str | None:
-    """The section above a dotted ``path`` that is set to null in a dumped world (``waves`` for ``waves.tp`` in calm
-    water), if any."""
-    parts, node = path.split("."), doc
-    for i, part in enumerate(parts[:-1]):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-        if node is None:
-            return ".".join(parts[:i + 1])
-    return None
 
 
 def _section_of(doc: dict, path: str) -> tuple[dict | None, str]:

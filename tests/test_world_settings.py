@@ -69,7 +69,9 @@ def test_the_worlds_batches_and_their_traces_merge_as_one_run():
     ("{waves.tp: on}", "variants.0.world.waves.tp: Input should be a number, not a boolean (YAML reads an unquoted "),
     ("{sensors.notch: 1}", "variants.0.world.sensors.notch: Input should be true or false, not a number"),
     ("{waves.rao: [0.2, yes, 0.01]}", "variants.0.world.waves.rao.1: Input should be a number, not a boolean"),
-    ("{waves: null, waves.tp: 8}", "variants.0.world.waves.tp: not a setting of this world, whose waves is null"),
+    ("{waves: null, waves.tp: 8}", ("variants.0.world.waves.tp: inside waves, which these settings set too (give one "
+                                    "or the other)")),
+    ("{waves.tp: 8, waves: null}", "variants.0.world.waves.tp: inside waves, which these settings set too"),
     # a world that builds but cannot run: found at validation, in the variant's own world
     ("{waves.gamma: 1e300}", ("variants.0.world: the world cannot be run from these values (not finite at t = 0: its "
                              "measurement)")),
@@ -78,6 +80,12 @@ def test_a_world_setting_is_checked_as_the_files_own(world, expected):
     with pytest.raises(ConfigError) as err:
         _load(f"variants[npo].world={world}")
     assert str(err.value).startswith(f"--set: {expected}")
+
+
+def test_a_setting_in_a_section_the_scenario_sets_to_null_says_so():
+    with pytest.raises(ConfigError) as err:
+        _load("scenario.waves=null", "variants[npo].world={waves.tp: 8}")
+    assert str(err.value) == "--set: variants.0.world.waves.tp: not a setting of this world, whose waves is null"
 
 
 @pytest.mark.parametrize("sets", [
