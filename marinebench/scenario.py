@@ -123,12 +123,14 @@ class ScenarioBase(BaseModel):
 
     #: Settings every run of an experiment's world shares, which no run may set for itself: the time axis.
     SHARED: ClassVar[tuple[str, ...]] = ("horizon", "dt")
+    #: What names the world (in metrics.csv and tables) and picks its class, which no run may set for itself either.
+    IDENTITY: ClassVar[tuple[str, ...]] = ("name", "description", "kind")
 
     def setting(self, path: str) -> float | None:
         """The world's own value of the numeric setting at a dotted ``path`` (``waves.tp``, ``control_period``), what a
         sweep may vary, or None where there is none (no such key, a text, a list, a switch, a section set to null, a
         :data:`SHARED` setting)."""
-        if path in self.SHARED:
+        if path in self.SHARED + self.IDENTITY:
             return None
         section, last = _section_of(self.model_dump(), path)
         value = section.get(last) if section is not None else None
@@ -136,9 +138,10 @@ class ScenarioBase(BaseModel):
 
     def has_setting(self, path: str) -> bool:
         """Whether a run may set the setting at a dotted ``path`` for itself (in a world of its own): a key of the
-        world (a number, a switch, a text, a list, a whole section) other than a :data:`SHARED` one."""
+        world (a number, a switch, a text, a list, a whole section) other than a :data:`SHARED` or :data:`IDENTITY`
+        one."""
         section, last = _section_of(self.model_dump(), path)
-        return section is not None and last in section and path not in self.SHARED
+        return section is not None and last in section and path not in self.SHARED + self.IDENTITY
 
     def null_section(self, path: str) -> str | None:
         """The section above a dotted ``path`` that this world sets to null (``waves`` for ``waves.tp`` in calm
@@ -158,7 +161,7 @@ class ScenarioBase(BaseModel):
             if isinstance(node, dict) and node:
                 return [p for key, value in node.items() for p in walk(value, f"{prefix}{key}.")]
             return [prefix[:-1]]
-        return [path for path in walk(self.model_dump(), "") if path not in self.SHARED]
+        return [path for path in walk(self.model_dump(), "") if path not in self.SHARED + self.IDENTITY]
 
     def world_settings(self, world: dict[str, Any]) -> dict[str, Any]:
         """The keys of a run's ``world:`` that are not per-run keys: settings of the world by their dotted paths, for
@@ -187,7 +190,7 @@ class ScenarioBase(BaseModel):
             section, last = _section_of(doc, key)
             if null := self.null_section(key):
                 raise ValueError(f"{key}: not a setting of this world, whose {null} is null")
-            if section is None or last not in section or key in self.SHARED:
+            if section is None or last not in section or key in self.SHARED + self.IDENTITY:
                 raise ValueError(f"{key}: neither a per-run key of the {self.kind} world ({', '.join(self.per_run_defaults())})"
                                  f" nor a setting of it by its dotted path (e.g. sensors.<key>; "
                                  f"{' and '.join(self.SHARED)} are every run's)")

@@ -63,6 +63,8 @@ def test_the_worlds_batches_and_their_traces_merge_as_one_run():
                       "'gm_time_constant', 'hs'], or a setting of the world by its dotted path, e.g. sensors.<key>; "
                       "horizon and dt are every run's)")),
     ("{waves.rao: 1}", "variants.0.world.waves.rao: Input should be a valid tuple"),  # a list, not a number
+    ("{name: calm}", "variants.0.world: unknown world keys ['name'] (per run: "),  # the world's name stays its own
+    ("{kind: rov_tracking}", "variants.0.world: unknown world keys ['kind'] (per run: "),
     ("{sensors.hold: held}", "variants.0.world.sensors.hold: Input should be 'noise' or 'measurement'"),
     ("{gnss_sigma: loud}", "variants.0.world.gnss_sigma: Input should be a number (a per-run key), not 'loud'"),
     ("{hs: true}", "variants.0.world.hs: Input should be a number, not a boolean (YAML reads an unquoted true, "),
